@@ -1,0 +1,1 @@
+//! Benchmark: metrics, run matrix, sweeps and tables (to come; see issue tracker).

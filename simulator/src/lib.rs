@@ -1,0 +1,16 @@
+//! evblur simulator: turns 3D scenes into images (and, later, event-camera datasets).
+//!
+//! What lives where:
+//! - [`scene`]: the in-memory scene (triangles, materials, textures, lights, environment, cameras)
+//!   and its loaders (glTF 2.0, OBJ/MTL, the `.toml` render description).
+//! - [`render`]: the BVH, sampling, BSDFs, lights and the path tracer that turn a scene into a
+//!   linear-light image.
+//! - [`image_io`]: writing linear EXR and 8-bit sRGB PNG, atomically.
+//! - [`error`]: the typed errors every loader returns.
+
+pub mod error;
+pub mod image_io;
+pub mod render;
+pub mod scene;
+
+pub use error::SceneError;

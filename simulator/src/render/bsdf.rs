@@ -1,0 +1,1 @@
+//! TODO(helper): Lambert + GGX metallic-roughness BSDF.

@@ -1,0 +1,1 @@
+//! TODO(helper): chi-square test for direction samplers.

@@ -1,0 +1,17 @@
+//! Turning a [`Scene`](crate::scene::Scene) into an image.
+//!
+//! - [`sampling`]: the per-sample RNG, warps, 1D/2D distributions, frames, MIS weights.
+//! - [`accel`]: the obvhs BVH over the scene's triangles; closest-hit and shadow queries.
+//! - [`bsdf`]: Lambert + GGX metallic-roughness (sample / eval / pdf).
+//! - [`lights`]: emissive triangles sampled by power, punctual lights, environment.
+//! - [`integrator`]: the unidirectional path tracer with next-event estimation and MIS.
+//! - [`film`]: the image buffer, the tiled parallel render loop and its settings.
+//! - [`chi2`]: a chi-square goodness-of-fit test for direction samplers (used by the tests).
+
+pub mod accel;
+pub mod bsdf;
+pub mod chi2;
+pub mod film;
+pub mod integrator;
+pub mod lights;
+pub mod sampling;

@@ -1,0 +1,1 @@
+//! Cross-crate and reference checks; see the files beside this one.

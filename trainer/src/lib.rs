@@ -1,0 +1,1 @@
+//! Trainer: radiance fields, blur models and losses (to come; see issue tracker).

@@ -1,1 +1,60 @@
-//! TODO: film
+//! The film: a linear-light RGB image and the settings of one render.
+
+use glam::Vec3;
+
+use crate::scene::Camera;
+
+/// A linear-light RGB image, row-major, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height` pixels.
+    pub pixels: Vec<Vec3>,
+}
+
+impl Image {
+    /// A black image.
+    pub fn new(width: u32, height: u32) -> Image {
+        Image { width, height, pixels: vec![Vec3::ZERO; (width * height) as usize] }
+    }
+    /// The pixel at column `x`, row `y`.
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        self.pixels[(y * self.width + x) as usize]
+    }
+    /// Mean of all pixels.
+    pub fn mean(&self) -> Vec3 {
+        self.pixels.iter().copied().sum::<Vec3>() / self.pixels.len().max(1) as f32
+    }
+}
+
+/// Everything that determines one rendered image besides the scene.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Maximum number of path segments (Mitsuba's convention): 1 = emitters seen directly,
+    /// 2 = direct lighting, ...; `u32::MAX` = unlimited (Russian roulette ends paths).
+    pub max_depth: u32,
+    /// Depth (in segments) from which Russian roulette may end paths.
+    pub rr_depth: u32,
+    /// Seed of every random stream.
+    pub seed: u64,
+    /// Frame index, folded into the random streams so that frames of a sequence differ.
+    pub frame: u64,
+    /// The camera to render from.
+    pub camera: Camera,
+}
+
+impl RenderSettings {
+    /// Defaults: 600x400, 64 spp, max depth 5, roulette from depth 5, seed 0, frame 0.
+    pub fn new(camera: Camera) -> RenderSettings {
+        RenderSettings { width: 600, height: 400, spp: 64, max_depth: 5, rr_depth: 5, seed: 0, frame: 0, camera }
+    }
+}

@@ -1,23 +1,255 @@
-//! TODO: the path tracer.
+//! The unidirectional path tracer (pbrt's `PathIntegrator`, Mitsuba's `path`).
+//!
+//! For each camera sample: trace a path; at every hit add the emitted radiance (weighted by MIS
+//! against light sampling), then next-event estimation to one light sampled by power (weighted
+//! by MIS against BSDF sampling, power heuristic), then continue along a BSDF-sampled direction.
+//!
+//! Depth follows Mitsuba: `max_depth` counts path segments, so 1 shows emitters only and 2 gives
+//! direct lighting; Russian roulette starts at `rr_depth` with survival
+//! `q = min(max(beta), 0.95)`. Pixels use a box filter: each sample is uniform in its pixel and
+//! the pixel value is the plain mean. Every sample's random stream is a function of
+//! (seed, pixel, frame, sample), so the image does not depend on thread count or tile order.
 
+use glam::{Vec2, Vec3};
 use indicatif::ProgressBar;
+use rayon::prelude::*;
 
+use super::accel::{Accel, BvhPreset, Hit};
+use super::bsdf::Bsdf;
 use super::film::{Image, RenderSettings};
+use super::lights::{emitted, Lights};
+use super::sampling::{power_heuristic, Frame, Rng};
 use crate::scene::Scene;
+
+/// Side of the square tiles rendered in parallel.
+pub const TILE: u32 = 16;
 
 /// A scene prepared for rendering: BVH built, lights gathered.
 pub struct Renderer<'a> {
     /// The scene being rendered.
     pub scene: &'a Scene,
+    /// The BVH over the scene's triangles.
+    pub accel: Accel,
+    /// The light table.
+    pub lights: Lights,
+}
+
+/// Everything about a surface hit the shading needs.
+struct SurfaceHit {
+    p: Vec3,
+    /// Unit geometric normal, CCW (not flipped).
+    ng: Vec3,
+    /// Shading frame, its normal flipped to the side of the incoming ray.
+    frame: Frame,
+    /// True when the ray arrived on the side the geometric normal points to.
+    front: bool,
+    uv: Vec2,
 }
 
 impl<'a> Renderer<'a> {
-    /// Build the acceleration structure and light tables for `scene`.
+    /// Build the acceleration structure (default preset) and light tables for `scene`.
     pub fn new(scene: &'a Scene) -> Renderer<'a> {
-        Renderer { scene }
+        Self::with_preset(scene, BvhPreset::default())
     }
+
+    /// As [`Renderer::new`] with a chosen BVH build preset.
+    pub fn with_preset(scene: &'a Scene, preset: BvhPreset) -> Renderer<'a> {
+        Renderer { scene, accel: Accel::build(&scene.mesh, preset), lights: Lights::new(scene) }
+    }
+
     /// Render one image; ticks `progress` once per finished tile when given.
-    pub fn render(&self, _settings: &RenderSettings, _progress: Option<&ProgressBar>) -> Image {
-        todo!("path tracer")
+    pub fn render(&self, settings: &RenderSettings, progress: Option<&ProgressBar>) -> Image {
+        let (w, h) = (settings.width, settings.height);
+        let tiles_x = w.div_ceil(TILE);
+        let tiles: Vec<(u32, u32)> =
+            (0..h.div_ceil(TILE)).flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty))).collect();
+        if let Some(pb) = progress {
+            pb.set_length(tiles.len() as u64);
+        }
+        let done: Vec<Vec<Vec3>> = tiles
+            .par_iter()
+            .map(|&(tx, ty)| {
+                let mut out = Vec::with_capacity((TILE * TILE) as usize);
+                for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                    for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                        out.push(self.pixel(settings, x, y));
+                    }
+                }
+                if let Some(pb) = progress {
+                    pb.inc(1);
+                }
+                out
+            })
+            .collect();
+        let mut img = Image::new(w, h);
+        for (&(tx, ty), px) in tiles.iter().zip(done) {
+            let mut it = px.into_iter();
+            for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                    img.pixels[(y * w + x) as usize] = it.next().unwrap_or_default();
+                }
+            }
+        }
+        img
+    }
+
+    /// Mean of `spp` box-filtered samples of pixel (x, y).
+    pub fn pixel(&self, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
+        let pixel_index = y as u64 * s.width as u64 + x as u64;
+        let origin = s.camera.origin();
+        let mut sum = Vec3::ZERO;
+        for i in 0..s.spp {
+            let mut rng = Rng::for_sample(s.seed, pixel_index, s.frame, i as u64);
+            let film = Vec2::new(x as f32, y as f32) + rng.next_2d();
+            let dir = s.camera.direction(film, s.width, s.height);
+            let l = self.li(origin, dir, s, &mut rng);
+            // a non-finite sample would poison the pixel: drop it (counts as black)
+            if l.is_finite() {
+                sum += l;
+            }
+        }
+        sum / s.spp.max(1) as f32
+    }
+
+    /// Interpolated surface data at a hit, with the shading frame facing `-dir`.
+    fn surface(&self, hit: &Hit, origin: Vec3, dir: Vec3) -> SurfaceHit {
+        let mesh = &self.scene.mesh;
+        let [i0, i1, i2] = mesh.indices[hit.prim as usize];
+        let (b1, b2) = (hit.bary.x, hit.bary.y);
+        let b0 = 1.0 - b1 - b2;
+        let [v0, v1, v2] = [i0, i1, i2].map(|i| mesh.positions[i as usize]);
+        let ng = (v1 - v0).cross(v2 - v0).normalize();
+        let front = ng.dot(dir) < 0.0;
+        let mut ns = (mesh.normals[i0 as usize] * b0 + mesh.normals[i1 as usize] * b1 + mesh.normals[i2 as usize] * b2)
+            .try_normalize()
+            .unwrap_or(ng);
+        // make the shading normal face the viewer (two-sided shading)
+        if ns.dot(dir) > 0.0 {
+            ns = -ns;
+        }
+        let uv = mesh.uvs[i0 as usize] * b0 + mesh.uvs[i1 as usize] * b1 + mesh.uvs[i2 as usize] * b2;
+        let p = origin + dir * hit.t;
+        SurfaceHit { p, ng, frame: Frame::from_normal(ns), front, uv }
+    }
+
+    /// The BSDF of triangle `prim`'s material at texture coordinate `uv`.
+    fn bsdf(&self, prim: u32, uv: Vec2) -> Bsdf {
+        let mat = &self.scene.materials[self.scene.mesh.material[prim as usize] as usize];
+        let mut base = mat.base_color;
+        if let Some(t) = mat.base_color_texture {
+            base *= self.scene.textures[t.index as usize].sample(uv).truncate();
+        }
+        let (mut metallic, mut roughness) = (mat.metallic, mat.roughness);
+        if let Some(t) = mat.metallic_roughness_texture {
+            let mr = self.scene.textures[t.index as usize].sample(uv);
+            roughness *= mr.y;
+            metallic *= mr.z;
+        }
+        Bsdf::new(base, metallic, mat.specular, roughness)
+    }
+
+    /// Radiance arriving at `origin` from direction `dir` (one path sample).
+    pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut Rng) -> Vec3 {
+        let scene = self.scene;
+        let mut l = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let (mut o, mut d) = (origin, dir);
+        // density of the BSDF sample that produced `d` (None for the camera ray: no MIS)
+        let mut prev_bsdf_pdf: Option<f32> = None;
+        let mut prev_p = origin;
+        let mut depth = 0u32;
+        loop {
+            let hit = self.accel.intersect(o, d, 0.0, f32::INFINITY);
+            depth += 1; // this segment
+            let Some(hit) = hit else {
+                // escaped: add the environment, MIS-weighted against environment sampling
+                let le = scene.environment.radiance(d);
+                if le != Vec3::ZERO {
+                    let w = match prev_bsdf_pdf {
+                        None => 1.0,
+                        Some(pb) => power_heuristic(pb, self.lights.pdf_environment(&scene.environment, d)),
+                    };
+                    l += beta * le * w;
+                }
+                break;
+            };
+            let sh = self.surface(&hit, o, d);
+
+            // add emission at the hit, MIS-weighted against area-light sampling
+            let le = emitted(scene, hit.prim, hit.bary, -d);
+            if le != Vec3::ZERO {
+                let w = match prev_bsdf_pdf {
+                    None => 1.0,
+                    Some(pb) => power_heuristic(pb, self.lights.pdf_triangle(hit.prim, prev_p, sh.p, sh.ng)),
+                };
+                l += beta * le * w;
+            }
+            if depth >= s.max_depth {
+                break;
+            }
+
+            let bsdf = self.bsdf(hit.prim, sh.uv);
+            let wo = sh.frame.to_local(-d);
+            // side of the geometric normal the path is on; reflection must stay on it
+            let ng_side = if sh.front { sh.ng } else { -sh.ng };
+            let p_off = offset_origin(sh.p, ng_side);
+
+            // next-event estimation: one light sampled by power
+            let u_sel = rng.next_f32();
+            let u_light = rng.next_2d();
+            if let Some(ls) = self.lights.sample(scene, sh.p, u_sel, u_light) {
+                let wi_local = sh.frame.to_local(ls.wi);
+                if ls.wi.dot(ng_side) > 0.0 {
+                    let f = bsdf.eval(wo, wi_local);
+                    if f != Vec3::ZERO {
+                        let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) - 1e-4 } else { f32::INFINITY };
+                        if !self.accel.occluded(p_off, ls.wi, 0.0, tmax) {
+                            let w = if ls.is_delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo, wi_local)) };
+                            l += beta * f * ls.radiance * (w / ls.pdf);
+                        }
+                    }
+                }
+            }
+
+            // continue the path along a BSDF sample
+            let u_lobe = rng.next_f32();
+            let u_dir = rng.next_2d();
+            let Some(bs) = bsdf.sample(wo, u_lobe, u_dir) else { break };
+            let wi = sh.frame.to_world(bs.wi);
+            if wi.dot(ng_side) <= 0.0 {
+                break; // the shading normal sent the path through the surface
+            }
+            beta *= bs.weight;
+            if beta == Vec3::ZERO || !beta.is_finite() {
+                break;
+            }
+
+            // Russian roulette
+            let u_rr = rng.next_f32();
+            if depth >= s.rr_depth {
+                let q = beta.max_element().min(0.95);
+                if u_rr >= q {
+                    break;
+                }
+                beta /= q;
+            }
+            prev_bsdf_pdf = Some(bs.pdf);
+            prev_p = sh.p;
+            o = p_off;
+            d = wi;
+        }
+        l
     }
 }
+
+/// Move a ray origin off the surface along the (side-correct) geometric normal, by an amount
+/// that scales with the magnitude of the coordinates to stay above float error.
+#[inline]
+fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
+    let eps = 1e-4 * p.abs().max_element().max(1.0);
+    p + n * eps
+}
+
+#[cfg(test)]
+#[path = "integrator_tests.rs"]
+mod tests;

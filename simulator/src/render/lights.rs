@@ -1,1 +1,262 @@
-//! TODO: lights
+//! Light sampling for next-event estimation.
+//!
+//! Every light is one entry of a single [`Distribution1D`], chosen with probability proportional
+//! to its power `Phi` (pbrt's power light sampler):
+//! - emissive triangle: `Phi = pi * A * lum(Le)` (doubled when two-sided), sampled uniformly by
+//!   area and converted to solid angle (`pdf = p_sel / A * d^2 / |cos theta_l|`);
+//! - point light: `Phi = 4 pi lum(I)`; spot: `Phi = 2 pi lum(I) (1 - (cos inner + cos outer)/2)`;
+//! - directional light: `Phi = pi r^2 lum(E)` with `r` the scene's bounding-sphere radius;
+//! - environment: `Phi = pi r^2 * integral of lum(L) over the sphere` (`4 pi lum(L)` if constant).
+//!
+//! Punctual and directional lights are delta lights: they are reached only by NEE, never by
+//! BSDF sampling, so their contribution needs no MIS weight.
+
+use glam::{Vec2, Vec3};
+
+use super::sampling::{uniform_triangle, Distribution1D};
+use crate::scene::{Environment, PunctualLight, Scene};
+
+/// Luminance of linear Rec.709 RGB.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// One entry of the light table.
+#[derive(Clone, Copy, Debug)]
+enum LightRef {
+    /// An emissive triangle (mesh index).
+    Triangle(u32),
+    /// An index into `Scene::lights`.
+    Punctual(u32),
+    /// The environment.
+    Environment,
+}
+
+/// A light sample seen from a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the shading point towards the light.
+    pub wi: Vec3,
+    /// Distance to the light point (`f32::INFINITY` for the environment and directional lights).
+    pub dist: f32,
+    /// Radiance (area lights, environment) or the delta light's contribution `I / d^2` or `E`.
+    pub radiance: Vec3,
+    /// Solid-angle density including the selection probability; for delta lights, the
+    /// selection probability alone.
+    pub pdf: f32,
+    /// True for point, spot and directional lights.
+    pub is_delta: bool,
+}
+
+/// The scene's lights, prepared for sampling.
+pub struct Lights {
+    table: Vec<LightRef>,
+    distribution: Distribution1D,
+    /// For each mesh triangle: its entry in `table`, or `u32::MAX` when it does not emit.
+    tri_entry: Vec<u32>,
+    /// Area of each emissive triangle, by table entry (0 for other entries).
+    area: Vec<f32>,
+    env_entry: Option<u32>,
+    /// Centre and radius of the scene's bounding sphere.
+    pub bounds: (Vec3, f32),
+}
+
+/// Emitted radiance of triangle `prim` at barycentrics `bary`, leaving towards `w`
+/// (zero behind a one-sided emitter).
+pub fn emitted(scene: &Scene, prim: u32, bary: Vec2, w: Vec3) -> Vec3 {
+    let mat = &scene.materials[scene.mesh.material[prim as usize] as usize];
+    if !mat.is_emissive() {
+        return Vec3::ZERO;
+    }
+    let [a, b, c] = scene.mesh.corners(prim as usize);
+    let ng = (b - a).cross(c - a);
+    if !mat.double_sided && ng.dot(w) <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let mut le = mat.emission;
+    if let Some(t) = mat.emission_texture {
+        let [i0, i1, i2] = scene.mesh.indices[prim as usize];
+        let uv = scene.mesh.uvs[i0 as usize] * (1.0 - bary.x - bary.y)
+            + scene.mesh.uvs[i1 as usize] * bary.x
+            + scene.mesh.uvs[i2 as usize] * bary.y;
+        le *= scene.textures[t.index as usize].sample(uv).truncate();
+    }
+    le
+}
+
+/// Bounding sphere (centre, radius) of the scene's vertices; radius at least 1e-3.
+fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
+    if scene.mesh.positions.is_empty() {
+        return (Vec3::ZERO, 1.0);
+    }
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for &p in &scene.mesh.positions {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    ((lo + hi) * 0.5, ((hi - lo) * 0.5).length().max(1e-3))
+}
+
+impl Lights {
+    /// Gather every light of `scene` and build the power distribution.
+    pub fn new(scene: &Scene) -> Lights {
+        let bounds = bounding_sphere(scene);
+        let r2 = bounds.1 * bounds.1;
+        let mut table = Vec::new();
+        let mut power = Vec::new();
+        let mut area = Vec::new();
+        let mut tri_entry = vec![u32::MAX; scene.mesh.len()];
+        for (i, &m) in scene.mesh.material.iter().enumerate() {
+            let mat = &scene.materials[m as usize];
+            if !mat.is_emissive() {
+                continue;
+            }
+            let [a, b, c] = scene.mesh.corners(i);
+            let tri_area = 0.5 * (b - a).cross(c - a).length();
+            if !(tri_area > 0.0) {
+                continue;
+            }
+            let mut le = mat.emission;
+            if let Some(t) = mat.emission_texture {
+                let tex = &scene.textures[t.index as usize];
+                le *= tex.texels.iter().map(|t| t.truncate()).sum::<Vec3>() / tex.texels.len().max(1) as f32;
+            }
+            let sides = if mat.double_sided { 2.0 } else { 1.0 };
+            tri_entry[i] = table.len() as u32;
+            table.push(LightRef::Triangle(i as u32));
+            power.push(sides * std::f32::consts::PI * tri_area * luminance(le));
+            area.push(tri_area);
+        }
+        for (i, l) in scene.lights.iter().enumerate() {
+            let phi = match l {
+                PunctualLight::Point { intensity, .. } => 4.0 * std::f32::consts::PI * luminance(*intensity),
+                PunctualLight::Spot { intensity, inner_cone, outer_cone, .. } => {
+                    std::f32::consts::TAU * luminance(*intensity) * (1.0 - 0.5 * (inner_cone.cos() + outer_cone.cos()))
+                }
+                PunctualLight::Directional { irradiance, .. } => std::f32::consts::PI * r2 * luminance(*irradiance),
+            };
+            table.push(LightRef::Punctual(i as u32));
+            power.push(phi);
+            area.push(0.0);
+        }
+        let mut env_entry = None;
+        if !scene.environment.is_black() {
+            env_entry = Some(table.len() as u32);
+            table.push(LightRef::Environment);
+            power.push(std::f32::consts::PI * r2 * scene.environment.power_integral());
+            area.push(0.0);
+        }
+        let distribution = Distribution1D::new(&power);
+        Lights { table, distribution, tri_entry, area, env_entry, bounds }
+    }
+
+    /// True when the scene has no light at all.
+    pub fn is_empty(&self) -> bool {
+        self.table.is_empty() || self.distribution.total <= 0.0
+    }
+
+    /// Sample a light as seen from point `p`.
+    pub fn sample(&self, scene: &Scene, p: Vec3, u_sel: f32, u: Vec2) -> Option<LightSample> {
+        if self.is_empty() {
+            return None;
+        }
+        let (entry, p_sel, _) = self.distribution.sample_discrete(u_sel);
+        if p_sel <= 0.0 {
+            return None;
+        }
+        match self.table[entry] {
+            LightRef::Triangle(prim) => {
+                // uniform point on the triangle, converted from area to solid angle
+                let b = uniform_triangle(u);
+                let [v0, v1, v2] = scene.mesh.corners(prim as usize);
+                let q = v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y;
+                let ng = (v1 - v0).cross(v2 - v0).normalize();
+                let to = q - p;
+                let d2 = to.length_squared();
+                if !(d2 > 0.0) {
+                    return None;
+                }
+                let dist = d2.sqrt();
+                let wi = to / dist;
+                let cos_l = ng.dot(-wi).abs();
+                if cos_l <= 1e-7 {
+                    return None;
+                }
+                let radiance = emitted(scene, prim, b, -wi);
+                if radiance == Vec3::ZERO {
+                    return None;
+                }
+                let pdf = p_sel / self.area[entry] * d2 / cos_l;
+                Some(LightSample { wi, dist, radiance, pdf, is_delta: false })
+            }
+            LightRef::Punctual(i) => {
+                let (wi, dist, radiance) = punctual_incident(&scene.lights[i as usize], p)?;
+                Some(LightSample { wi, dist, radiance, pdf: p_sel, is_delta: true })
+            }
+            LightRef::Environment => {
+                let s = scene.environment.sample(u)?;
+                if s.pdf <= 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    wi: s.wi,
+                    dist: f32::INFINITY,
+                    radiance: s.radiance,
+                    pdf: p_sel * s.pdf,
+                    is_delta: false,
+                })
+            }
+        }
+    }
+
+    /// Solid-angle density with which [`Lights::sample`] picks the point `q` (normal `ng_q`, unit)
+    /// on emissive triangle `prim`, seen from `p`.
+    pub fn pdf_triangle(&self, prim: u32, p: Vec3, q: Vec3, ng_q: Vec3) -> f32 {
+        let entry = self.tri_entry[prim as usize];
+        if entry == u32::MAX {
+            return 0.0;
+        }
+        let to = q - p;
+        let d2 = to.length_squared();
+        let cos_l = ng_q.dot(to).abs() / d2.sqrt();
+        if cos_l <= 1e-7 {
+            return 0.0;
+        }
+        self.distribution.pmf(entry as usize) / self.area[entry as usize] * d2 / cos_l
+    }
+
+    /// Solid-angle density with which [`Lights::sample`] picks environment direction `d`.
+    pub fn pdf_environment(&self, env: &Environment, d: Vec3) -> f32 {
+        match self.env_entry {
+            Some(e) => self.distribution.pmf(e as usize) * env.pdf(d),
+            None => 0.0,
+        }
+    }
+}
+
+/// Direction, distance and incident contribution (`I / d^2`, or `E`) of a delta light at `p`.
+fn punctual_incident(light: &PunctualLight, p: Vec3) -> Option<(Vec3, f32, Vec3)> {
+    match *light {
+        PunctualLight::Point { position, intensity } => {
+            let to = position - p;
+            let d2 = to.length_squared();
+            (d2 > 0.0).then(|| (to / d2.sqrt(), d2.sqrt(), intensity / d2))
+        }
+        PunctualLight::Spot { position, direction, intensity, inner_cone, outer_cone } => {
+            let to = position - p;
+            let d2 = to.length_squared();
+            if !(d2 > 0.0) {
+                return None;
+            }
+            let wi = to / d2.sqrt();
+            // glTF's recommended smooth angular falloff between the cone angles
+            let scale = 1.0 / (inner_cone.cos() - outer_cone.cos()).max(1e-3);
+            let offset = -outer_cone.cos() * scale;
+            let att = (direction.dot(-wi) * scale + offset).clamp(0.0, 1.0);
+            let att = att * att;
+            (att > 0.0).then(|| (wi, d2.sqrt(), intensity * att / d2))
+        }
+        PunctualLight::Directional { direction, irradiance } => Some((-direction, f32::INFINITY, irradiance)),
+    }
+}

@@ -46,6 +46,13 @@ impl Environment {
         let wi = crate::render::sampling::uniform_sphere(u);
         Some(EnvSample { wi, radiance: self.radiance(wi), pdf: self.pdf(wi) })
     }
+    /// Integral over the sphere of the luminance of the radiance (sr * W/m^2/sr), for light
+    /// selection by power.
+    pub fn power_integral(&self) -> f32 {
+        match self {
+            Environment::Constant(c) => 4.0 * std::f32::consts::PI * crate::render::lights::luminance(*c),
+        }
+    }
     /// Density of [`Environment::sample`] for direction `d`, w.r.t. solid angle.
     pub fn pdf(&self, _d: Vec3) -> f32 {
         crate::render::sampling::UNIFORM_SPHERE_PDF

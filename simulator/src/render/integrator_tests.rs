@@ -1,0 +1,133 @@
+//! Known-answer tests of the path tracer (no reference renderer needed).
+
+use glam::{Vec2, Vec3};
+
+use super::*;
+use crate::scene::{Camera, Environment, Material, PunctualLight, Scene, TriangleMesh};
+
+/// Add an axis-aligned quad (two triangles) with corners `c`, CCW around `c[1]-c[0] x c[2]-c[0]`.
+fn quad(mesh: &mut TriangleMesh, c: [Vec3; 4], material: u32) {
+    let n = (c[1] - c[0]).cross(c[2] - c[0]).normalize();
+    let base = mesh.positions.len() as u32;
+    for p in c {
+        mesh.positions.push(p);
+        mesh.normals.push(n);
+        mesh.uvs.push(Vec2::ZERO);
+    }
+    mesh.indices.push([base, base + 1, base + 2]);
+    mesh.indices.push([base, base + 2, base + 3]);
+    mesh.material.extend([material, material]);
+}
+
+/// A cube [-1,1]^3 whose faces point inwards (`inward`) or outwards.
+fn cube(mesh: &mut TriangleMesh, material: u32, inward: bool) {
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    let faces = [
+        [v(-1., -1., -1.), v(1., -1., -1.), v(1., -1., 1.), v(-1., -1., 1.)], // bottom, normal -y
+        [v(-1., 1., -1.), v(-1., 1., 1.), v(1., 1., 1.), v(1., 1., -1.)],     // top, +y
+        [v(-1., -1., -1.), v(-1., 1., -1.), v(1., 1., -1.), v(1., -1., -1.)], // back, -z
+        [v(-1., -1., 1.), v(1., -1., 1.), v(1., 1., 1.), v(-1., 1., 1.)],     // front, +z
+        [v(-1., -1., -1.), v(-1., -1., 1.), v(-1., 1., 1.), v(-1., 1., -1.)], // left, -x
+        [v(1., -1., -1.), v(1., 1., -1.), v(1., 1., 1.), v(1., -1., 1.)],     // right, +x
+    ];
+    for mut f in faces {
+        if inward {
+            f.reverse();
+        }
+        quad(mesh, f, material);
+    }
+}
+
+fn lambert(albedo: f32, emission: f32) -> Material {
+    Material {
+        name: "m".into(),
+        base_color: Vec3::splat(albedo),
+        specular: 0.0,
+        emission: Vec3::splat(emission),
+        ..Material::default()
+    }
+}
+
+fn settings(spp: u32, max_depth: u32) -> RenderSettings {
+    let cam = Camera::look_at(Vec3::new(0.0, 0.0, 0.5), Vec3::ZERO, Vec3::Y, 1.2);
+    RenderSettings { width: 16, height: 12, spp, max_depth, rr_depth: 5, seed: 3, frame: 0, camera: cam }
+}
+
+fn furnace_scene() -> Scene {
+    let mut mesh = TriangleMesh::default();
+    cube(&mut mesh, 0, true);
+    Scene { mesh, materials: vec![lambert(0.5, 1.0)], ..Scene::default() }
+}
+
+#[test]
+fn furnace_matches_the_geometric_series_at_every_depth() {
+    // inner faces emit 1 with albedo 0.5: L = sum_{k < depth} 0.5^k
+    let scene = furnace_scene();
+    let r = Renderer::new(&scene);
+    for (depth, want) in [(1, 1.0), (2, 1.5), (3, 1.75), (5, 1.9375), (u32::MAX, 2.0)] {
+        let img = r.render(&settings(64, depth), None);
+        let m = img.mean();
+        assert!((m - Vec3::splat(want)).abs().max_element() < 0.01 * want, "depth {depth}: {m} vs {want}");
+    }
+}
+
+#[test]
+fn diffuse_plane_under_constant_environment_has_its_albedo() {
+    // a two-sided quad of albedo 0.6 under a uniform environment of 1 reflects exactly 0.6
+    let mut mesh = TriangleMesh::default();
+    let s = 50.0;
+    quad(&mut mesh, [Vec3::new(-s, 0., -s), Vec3::new(-s, 0., s), Vec3::new(s, 0., s), Vec3::new(s, 0., -s)], 0);
+    let mut mat = lambert(0.6, 0.0);
+    mat.double_sided = true;
+    let scene = Scene { mesh, materials: vec![mat], environment: Environment::Constant(Vec3::ONE), ..Scene::default() };
+    let r = Renderer::new(&scene);
+    for (eye, target) in [(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, -0.2)), (Vec3::new(0.0, -1.0, 0.0), Vec3::new(0.0, 0.0, 0.2))] {
+        let mut st = settings(256, 3);
+        st.camera = Camera::look_at(eye, target, Vec3::Z, 0.3);
+        let m = r.render(&st, None).mean();
+        assert!((m - Vec3::splat(0.6)).abs().max_element() < 0.01, "{eye}: {m}");
+    }
+}
+
+#[test]
+fn point_light_gives_inverse_square_irradiance() {
+    // a Lambertian floor of albedo a under a point light of intensity I at height h:
+    // directly below, L = a/pi * I / h^2
+    let mut mesh = TriangleMesh::default();
+    let s = 10.0;
+    quad(&mut mesh, [Vec3::new(-s, 0., -s), Vec3::new(-s, 0., s), Vec3::new(s, 0., s), Vec3::new(s, 0., -s)], 0);
+    let scene = Scene {
+        mesh,
+        materials: vec![lambert(0.5, 0.0)],
+        lights: vec![PunctualLight::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0) }],
+        ..Scene::default()
+    };
+    let r = Renderer::new(&scene);
+    let mut st = settings(4, 2);
+    st.camera = Camera::look_at(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, -1e-3), Vec3::Z, 0.01);
+    let m = r.render(&st, None).mean();
+    let want = 0.5 / std::f32::consts::PI * 8.0 / 4.0;
+    assert!((m.x - want).abs() < 2e-3 * want, "{m} vs {want}");
+}
+
+#[test]
+fn one_sided_emitter_is_dark_from_behind() {
+    let mut mesh = TriangleMesh::default();
+    cube(&mut mesh, 0, false); // faces point outwards: the camera inside sees their backs
+    let scene = Scene { mesh, materials: vec![lambert(0.0, 1.0)], ..Scene::default() };
+    let img = Renderer::new(&scene).render(&settings(4, 5), None);
+    assert_eq!(img.mean(), Vec3::ZERO);
+}
+
+#[test]
+fn image_is_identical_with_one_or_two_threads() {
+    let scene = furnace_scene();
+    let r = Renderer::new(&scene);
+    let st = settings(8, 5);
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| r.render(&st, None));
+    let two = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap().install(|| r.render(&st, None));
+    assert_eq!(one, two);
+    let mut other_frame = st.clone();
+    other_frame.frame = 1;
+    assert_ne!(r.render(&other_frame, None), one, "frames must use different random streams");
+}

@@ -1,0 +1,193 @@
+//! `evsim`: the evblur simulator's command line.
+//!
+//! - `evsim render <scene> --spp N --out img.exr`: path-trace one image.
+//! - `evsim bench render`: render throughput (and the Mitsuba ratio when Mitsuba is installed),
+//!   BVH build time and ray throughput on a 1 M-triangle scene.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use simulator::image_io::write_image;
+use simulator::render::accel::BvhPreset;
+use simulator::render::film::RenderSettings;
+use simulator::render::integrator::Renderer;
+use simulator::scene::{self, Camera};
+
+mod bench;
+
+/// evblur simulator: render scenes (and, soon, event-camera datasets).
+#[derive(Parser, Debug)]
+#[command(name = "evsim", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Path-trace one image of a scene (.gltf, .glb, .obj or a .toml render description).
+    Render(RenderArgs),
+    /// Benchmarks that print performance figures.
+    Bench {
+        #[command(subcommand)]
+        what: bench::BenchCommand,
+    },
+}
+
+/// Options of `evsim render`.
+#[derive(Args, Debug, Clone)]
+pub struct RenderArgs {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Output image: .exr (linear float) or .png (8-bit sRGB).
+    #[arg(long, default_value = "render.exr")]
+    pub out: PathBuf,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 600)]
+    pub width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 400)]
+    pub height: u32,
+    /// Maximum path segments (1 = emitters only, 2 = direct light; 0 = unlimited).
+    #[arg(long, default_value_t = 5)]
+    pub max_depth: u32,
+    /// Seed of the random streams.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Which of the scene's cameras to use.
+    #[arg(long, default_value_t = 0)]
+    pub camera: usize,
+    /// Camera override: position "x,y,z" (needs --look-at).
+    #[arg(long, value_parser = parse_vec3, requires = "look_at")]
+    pub look_from: Option<Vec3>,
+    /// Camera override: target point "x,y,z".
+    #[arg(long, value_parser = parse_vec3, requires = "look_from")]
+    pub look_at: Option<Vec3>,
+    /// Camera override: up vector "x,y,z".
+    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0")]
+    pub up: Vec3,
+    /// Camera override: full vertical field of view in degrees.
+    #[arg(long)]
+    pub fov: Option<f32>,
+    /// BVH build preset.
+    #[arg(long, value_enum, default_value_t = BvhPreset::default())]
+    pub bvh: BvhPreset,
+}
+
+/// Parse "x,y,z" into a vector.
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f32>().map_err(|e| format!("'{p}': {e}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(x, y, z)),
+        _ => Err(format!("expected three finite numbers \"x,y,z\", got \"{s}\"")),
+    }
+}
+
+/// Resolve the camera from the scene and the overrides.
+pub fn resolve_camera(args: &RenderArgs, scene: &scene::Scene) -> Result<Camera> {
+    let fov = args.fov.map(|f| f.to_radians());
+    if let Some(f) = fov {
+        if !(f > 0.0 && f < std::f32::consts::PI) {
+            bail!("--fov must be in (0, 180) degrees, got {}", args.fov.unwrap());
+        }
+    }
+    if let (Some(from), Some(at)) = (args.look_from, args.look_at) {
+        if (at - from).length() == 0.0 || (at - from).normalize().cross(args.up).length() < 1e-6 {
+            bail!("--look-from and --look-at must differ and not be parallel to --up");
+        }
+        return Ok(Camera::look_at(from, at, args.up, fov.unwrap_or(40f32.to_radians())));
+    }
+    let Some(cam) = scene.cameras.get(args.camera) else {
+        bail!(
+            "{}: has {} camera(s), so --camera {} does not exist; add a camera to the scene or pass --look-from/--look-at",
+            scene.source.display(),
+            scene.cameras.len(),
+            args.camera
+        );
+    };
+    let mut cam = cam.clone();
+    if let Some(f) = fov {
+        cam.yfov = f;
+    }
+    Ok(cam)
+}
+
+/// Turn the arguments into render settings (validated).
+pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
+    if args.width == 0 || args.height == 0 || args.spp == 0 {
+        bail!("--width, --height and --spp must be positive");
+    }
+    Ok(RenderSettings {
+        width: args.width,
+        height: args.height,
+        spp: args.spp,
+        max_depth: if args.max_depth == 0 { u32::MAX } else { args.max_depth },
+        rr_depth: 5,
+        seed: args.seed,
+        frame: 0,
+        camera,
+    })
+}
+
+/// A progress bar in the project's style.
+pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template("{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} (eta {eta})")
+            .expect("static template"),
+    );
+    pb.set_message(what.to_string());
+    pb
+}
+
+fn render(args: &RenderArgs) -> Result<()> {
+    let t0 = Instant::now();
+    let scene = scene::load(&args.scene)?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    let camera = resolve_camera(args, &scene)?;
+    let st = settings(args, camera)?;
+    let load_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let renderer = Renderer::with_preset(&scene, args.bvh);
+    let build_s = t1.elapsed().as_secs_f64();
+    let pb = progress_bar(0, "render");
+    let t2 = Instant::now();
+    let img = renderer.render(&st, Some(&pb));
+    let render_s = t2.elapsed().as_secs_f64();
+    pb.finish_and_clear();
+    write_image(&img, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    let samples = st.width as f64 * st.height as f64 * st.spp as f64;
+    println!(
+        "{}: {} triangles, {} lights; load {:.2} s, BVH {:.2} s, render {:.2} s ({:.2} M samples/s); wrote {}",
+        args.scene.display(),
+        scene.mesh.len(),
+        scene.lights.len(),
+        load_s,
+        build_s,
+        render_s,
+        samples / render_s / 1e6,
+        args.out.display()
+    );
+    Ok(())
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Render(args) => render(&args),
+        Command::Bench { what } => bench::run(what),
+    }
+}

@@ -152,3 +152,135 @@ impl TextureLoader<'_> {
         Ok(texture)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::gltf_load::fixture::{assert_close, base64, png, temp_dir, Doc};
+    use super::super::gltf_load::load;
+    use super::super::texture::srgb_to_linear;
+    use super::*;
+    use glam::{Vec2, Vec4};
+
+    /// 2x2 RGBA8: a purple, a dark green, a half-transparent white, a dark blue-grey.
+    const TEXELS: [u8; 16] = [128, 0, 255, 255, 0, 64, 0, 255, 255, 255, 255, 128, 10, 20, 30, 255];
+
+    /// A textured triangle (with UVs) using material 0 under one node.
+    fn textured_doc() -> Doc {
+        let mut d = Doc::default();
+        let p = d.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
+        let uv = d.floats(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0], "VEC2");
+        d.meshes.push(format!(r#"{{"primitives":[{{"attributes":{{"POSITION":{p},"TEXCOORD_0":{uv}}},"material":0}}]}}"#));
+        d.node(r#"{"mesh":0}"#);
+        d
+    }
+
+    #[test]
+    fn glb_png_texture_decodes_srgb_and_maps_wrap_modes() {
+        let mut d = textured_doc();
+        let view = d.view(&png(2, 2, &TEXELS));
+        d.extra.push(format!(
+            r#""materials":[{{"name":"Painted","doubleSided":true,"pbrMetallicRoughness":{{
+                "baseColorFactor":[0.5,0.25,1,1],"baseColorTexture":{{"index":0}},
+                "metallicFactor":0.3,"roughnessFactor":0.6,"metallicRoughnessTexture":{{"index":0}}}}}}],
+            "textures":[{{"source":0,"sampler":0}}],
+            "samplers":[{{"wrapS":33071,"wrapT":33648}}],
+            "images":[{{"bufferView":{view},"mimeType":"image/png"}}]"#
+        ));
+        let s = load(&d.write_glb(&temp_dir("glb"), "painted")).unwrap();
+        assert_eq!(s.mesh.uvs, vec![Vec2::ZERO, Vec2::X, Vec2::Y]);
+        let m = &s.materials[0];
+        assert_eq!(m.name, "Painted");
+        assert_close(m.base_color, Vec3::new(0.5, 0.25, 1.0));
+        assert_eq!((m.metallic, m.roughness, m.specular, m.double_sided), (0.3, 0.6, 1.0, true));
+        assert_eq!(m.base_color_texture, Some(TextureRef { index: 0 }));
+        assert_eq!(m.metallic_roughness_texture, Some(TextureRef { index: 1 }));
+        // one image used as colour (sRGB-decoded) and as data (linear): two textures
+        assert_eq!(s.textures.len(), 2);
+        let (colour, data) = (&s.textures[0], &s.textures[1]);
+        let c = 128.0 / 255.0;
+        let expected = Vec4::new(srgb_to_linear(c), 0.0, 1.0, 1.0);
+        assert!((colour.texels[0] - expected).abs().max_element() < 1e-6, "{}", colour.texels[0]);
+        assert!((srgb_to_linear(c) - 0.2158605).abs() < 1e-6);
+        assert!((data.texels[0] - Vec4::new(c, 0.0, 1.0, 1.0)).abs().max_element() < 1e-6);
+        // alpha stays linear; the second row is the image's second row
+        assert!((colour.texels[2].w - c).abs() < 1e-6);
+        assert!((colour.texels[1].y - srgb_to_linear(64.0 / 255.0)).abs() < 1e-6);
+        for t in [colour, data] {
+            assert_eq!((t.width, t.height), (2, 2));
+            assert_eq!((t.wrap_u, t.wrap_v), (WrapMode::ClampToEdge, WrapMode::MirroredRepeat));
+        }
+    }
+
+    #[test]
+    fn emissive_strength_multiplies_and_textures_are_shared() {
+        let mut d = textured_doc();
+        let uri = format!("data:image/png;base64,{}", base64(&png(2, 2, &TEXELS)));
+        d.extra.push(format!(
+            r#""extensionsUsed":["KHR_materials_emissive_strength"],
+            "materials":[
+              {{"emissiveFactor":[1,0.5,0],"emissiveTexture":{{"index":0}},
+                "extensions":{{"KHR_materials_emissive_strength":{{"emissiveStrength":4}}}}}},
+              {{"name":"Plain","emissiveFactor":[0.25,0.25,0.25],"emissiveTexture":{{"index":0}},
+                "pbrMetallicRoughness":{{"baseColorTexture":{{"index":1}}}}}}],
+            "textures":[{{"source":0}},{{"source":0,"sampler":0}}],
+            "samplers":[{{"wrapS":10497,"wrapT":33071}}],
+            "images":[{{"uri":"{uri}"}}]"#
+        ));
+        let s = load(&d.write_external(&temp_dir("emit"), "emit")).unwrap();
+        let (a, b) = (&s.materials[0], &s.materials[1]);
+        assert_close(a.emission, Vec3::new(4.0, 2.0, 0.0));
+        assert_close(b.emission, Vec3::splat(0.25));
+        assert_eq!(a.name, "material 0");
+        assert!(!a.double_sided);
+        assert_eq!((a.metallic, a.roughness), (1.0, 1.0)); // glTF defaults
+        // texture 0 (default sampler) decoded once for both materials; texture 1 shares the
+        // image and colour space but not the sampler: same texels, its own wrap modes
+        assert_eq!(a.emission_texture, Some(TextureRef { index: 0 }));
+        assert_eq!(b.emission_texture, Some(TextureRef { index: 0 }));
+        assert_eq!(b.base_color_texture, Some(TextureRef { index: 1 }));
+        assert_eq!(s.textures.len(), 2);
+        assert_eq!(s.textures[0].texels, s.textures[1].texels);
+        assert_eq!((s.textures[0].wrap_u, s.textures[0].wrap_v), (WrapMode::Repeat, WrapMode::Repeat));
+        assert_eq!((s.textures[1].wrap_u, s.textures[1].wrap_v), (WrapMode::Repeat, WrapMode::ClampToEdge));
+        assert!((s.textures[0].texels[3].z - srgb_to_linear(30.0 / 255.0)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn missing_or_undecodable_texture_is_invalid() {
+        let dir = temp_dir("notex");
+        let mut d = textured_doc();
+        d.extra.push(
+            r#""materials":[{"name":"Wood","pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}],
+            "textures":[{"source":0}],"images":[{"uri":"nope.png"}]"#
+                .into(),
+        );
+        let e = load(&d.write_embedded(&dir, "missing")).unwrap_err();
+        assert!(matches!(e, SceneError::Invalid { .. }), "{e}");
+        let msg = e.to_string();
+        assert!(msg.contains("material 0 \"Wood\" baseColorTexture") && msg.contains("nope.png"), "{msg}");
+
+        fixture_write(&dir, "nope.png", b"not a png");
+        let e = load(&d.write_embedded(&dir, "garbage")).unwrap_err();
+        assert!(matches!(e, SceneError::Invalid { .. }) && e.to_string().contains("cannot be decoded"), "{e}");
+    }
+
+    #[test]
+    fn tex_coord_1_is_unsupported() {
+        let mut d = textured_doc();
+        let uri = format!("data:image/png;base64,{}", base64(&png(2, 2, &TEXELS)));
+        d.extra.push(format!(
+            r#""materials":[{{"name":"Wood","pbrMetallicRoughness":{{"baseColorTexture":{{"index":0,"texCoord":1}}}}}}],
+            "textures":[{{"source":0}}],"images":[{{"uri":"{uri}"}}]"#
+        ));
+        let e = load(&d.write_embedded(&temp_dir("uv1"), "uv1")).unwrap_err();
+        assert!(
+            matches!(e, SceneError::Unsupported { ref element, .. } if element == "material 0 \"Wood\" baseColorTexture"),
+            "{e}"
+        );
+        assert!(e.to_string().contains("texCoord 1"), "{e}");
+    }
+
+    fn fixture_write(dir: &Path, name: &str, bytes: &[u8]) {
+        super::super::gltf_load::fixture::write(dir, name, bytes);
+    }
+}

@@ -286,3 +286,196 @@ fn assemble(mode: Mode, ids: &[u32]) -> Result<Vec<[u32; 3]>, String> {
         _ => return Err(format!("mode {mode:?} is not a triangle mode")),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::gltf_load::fixture::{assert_close, temp_dir, Doc};
+    use super::super::gltf_load::load;
+    use super::*;
+
+    const H: f32 = std::f32::consts::FRAC_1_SQRT_2;
+
+    /// Unit geometric normal of triangle `i` from its counter-clockwise winding.
+    fn geometric_normal(m: &TriangleMesh, i: usize) -> Vec3 {
+        let [a, b, c] = m.corners(i);
+        (b - a).cross(c - a).normalize()
+    }
+
+    #[test]
+    fn trs_node_places_triangle() {
+        let mut d = Doc::default();
+        d.triangle("");
+        // p' = T R S p with S = 2, R = +90 deg about Z, T = (1, 2, 3)
+        d.node(&format!(r#"{{"mesh":0,"translation":[1,2,3],"rotation":[0,0,{H},{H}],"scale":[2,2,2]}}"#));
+        let s = load(&d.write_embedded(&temp_dir("trs"), "trs")).unwrap();
+        let m = &s.mesh;
+        assert_eq!(m.len(), 1);
+        assert_close(m.positions[0], Vec3::new(1.0, 2.0, 3.0));
+        assert_close(m.positions[1], Vec3::new(1.0, 4.0, 3.0)); // (1,0,0) -> (2,0,0) -> (0,2,0)
+        assert_close(m.positions[2], Vec3::new(-1.0, 2.0, 3.0)); // (0,1,0) -> (0,2,0) -> (-2,0,0)
+        for n in &m.normals {
+            assert_close(*n, Vec3::Z);
+        }
+        assert_close(geometric_normal(m, 0), Vec3::Z);
+    }
+
+    #[test]
+    fn matrix_node_composes_with_parent_and_normals_use_inverse_transpose() {
+        let mut d = Doc::default();
+        let pos = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+        let nrm = [H, H, 0.0, H, H, 0.0, H, H, 0.0];
+        d.mesh("Slant", &pos, Some(&nrm), None, "");
+        // child: column-major matrix scaling x by 3 then translating by (1, 0, 0)
+        d.node(r#"{"mesh":0,"matrix":[3,0,0,0, 0,1,0,0, 0,0,1,0, 1,0,0,1]}"#);
+        d.node(r#"{"translation":[0,0,5],"children":[0]}"#);
+        d.roots = Some(vec![1]);
+        let s = load(&d.write_embedded(&temp_dir("matrix"), "matrix")).unwrap();
+        let m = &s.mesh;
+        assert_close(m.positions[0], Vec3::new(4.0, 0.0, 5.0));
+        assert_close(m.positions[1], Vec3::new(1.0, 1.0, 5.0));
+        assert_close(m.positions[2], Vec3::new(1.0, 0.0, 6.0));
+        // M^{-T} = diag(1/3, 1, 1): (1, 1, 0) -> (1/3, 1, 0)
+        let expected = Vec3::new(1.0 / 3.0, 1.0, 0.0).normalize();
+        for n in &m.normals {
+            assert_close(*n, expected);
+        }
+    }
+
+    #[test]
+    fn negative_scale_flips_winding() {
+        let mut d = Doc::default();
+        d.triangle("");
+        d.node(r#"{"mesh":0,"scale":[-1,1,1]}"#);
+        let s = load(&d.write_embedded(&temp_dir("mirror"), "mirror")).unwrap();
+        let m = &s.mesh;
+        // mirrored corners are (0,0,0), (-1,0,0), (0,1,0); kept in file order they would wind
+        // clockwise around +Z; with two corners swapped the geometric normal is +Z again
+        assert_close(geometric_normal(m, 0), Vec3::Z);
+        assert_eq!(m.indices[0], [0, 2, 1]);
+        assert_close(m.positions[1], Vec3::new(-1.0, 0.0, 0.0));
+        assert_close(m.normals[0], Vec3::Z);
+        assert!(geometric_normal(m, 0).dot(m.normals[0]) > 0.999);
+    }
+
+    #[test]
+    fn instanced_mesh_emitted_per_node() {
+        let mut d = Doc::default();
+        d.triangle("");
+        d.node(r#"{"mesh":0}"#);
+        d.node(r#"{"mesh":0,"translation":[10,0,0]}"#);
+        let s = load(&d.write_embedded(&temp_dir("inst"), "inst")).unwrap();
+        let m = &s.mesh;
+        assert_eq!(m.len(), 2);
+        assert_eq!(m.positions.len(), 6);
+        let (a, b) = (m.corners(0), m.corners(1));
+        for k in 0..3 {
+            assert_close(b[k], a[k] + Vec3::new(10.0, 0.0, 0.0));
+        }
+        assert_eq!(m.indices[1], [3, 4, 5]);
+    }
+
+    #[test]
+    fn non_indexed_primitive_gets_generated_normals_and_default_material() {
+        let mut d = Doc::default();
+        // winding (0,0,0) -> (0,0,1) -> (1,0,0) faces +Y
+        d.mesh("Floor", &[0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0], None, None, "");
+        d.node(r#"{"mesh":0}"#);
+        let s = load(&d.write_embedded(&temp_dir("noidx"), "noidx")).unwrap();
+        let m = &s.mesh;
+        assert_eq!(m.indices, vec![[0, 1, 2]]);
+        for n in &m.normals {
+            assert_close(*n, Vec3::Y);
+        }
+        assert_eq!(m.uvs, vec![Vec2::ZERO; 3]);
+        assert_eq!(s.materials, vec![Material::default()]);
+        assert_eq!(m.material, vec![0]);
+    }
+
+    #[test]
+    fn strips_and_fans_become_counter_clockwise_triangles() {
+        let mut d = Doc::default();
+        // unit square in z = 0; strip order 0 1 2 3 = (0,0) (1,0) (0,1) (1,1)
+        let strip = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0];
+        d.mesh("Strip", &strip, None, None, r#","mode":5"#);
+        // fan around (0,0): (1,0) (1,1) (0,1)
+        let fan = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
+        d.mesh("Fan", &fan, None, Some(&[0, 1, 2, 3]), r#","mode":6"#);
+        d.node(r#"{"mesh":0}"#);
+        d.node(r#"{"mesh":1,"translation":[5,0,0]}"#);
+        let s = load(&d.write_embedded(&temp_dir("strip"), "strip")).unwrap();
+        let m = &s.mesh;
+        assert_eq!(m.len(), 4);
+        assert_eq!(m.indices[0], [0, 1, 2]);
+        assert_eq!(m.indices[1], [1, 3, 2]);
+        assert_eq!(m.indices[2], [5, 6, 4]);
+        assert_eq!(m.indices[3], [6, 7, 4]);
+        for i in 0..4 {
+            assert_close(geometric_normal(m, i), Vec3::Z);
+        }
+        // the two halves of each square cover area 1
+        let area: f32 = (0..2).map(|i| {
+            let [a, b, c] = m.corners(i);
+            0.5 * (b - a).cross(c - a).length()
+        }).sum();
+        assert!((area - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn degenerate_triangles_skipped_with_one_warning() {
+        let mut d = Doc::default();
+        let pos = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 2.0, 0.0, 0.0];
+        d.mesh("Sliver", &pos, None, Some(&[0, 1, 2, 0, 1, 3, 1, 3, 0]), "");
+        d.node(r#"{"mesh":0}"#);
+        let s = load(&d.write_embedded(&temp_dir("degen"), "degen")).unwrap();
+        assert_eq!(s.mesh.indices, vec![[0, 1, 2]]);
+        assert_eq!(s.warnings.len(), 1);
+        let w = &s.warnings[0];
+        assert!(w.contains("mesh 0 \"Sliver\" primitive 0") && w.contains("skipped 2 degenerate"), "{w}");
+    }
+
+    #[test]
+    fn points_primitive_is_unsupported() {
+        let mut d = Doc::default();
+        d.triangle("");
+        d.mesh("Dots", &[0.0, 0.0, 0.0, 1.0, 1.0, 1.0], None, None, r#","mode":0"#);
+        d.node(r#"{"mesh":0}"#);
+        d.node(r#"{"mesh":1}"#);
+        let e = load(&d.write_embedded(&temp_dir("points"), "points")).unwrap_err();
+        assert!(matches!(e, SceneError::Unsupported { ref element, .. } if element == "mesh 1 \"Dots\" primitive 0"), "{e}");
+        assert!(e.to_string().contains("Points"), "{e}");
+    }
+
+    #[test]
+    fn nan_position_is_invalid() {
+        let mut d = Doc::default();
+        d.mesh("Bad", &[0.0, 0.0, 0.0, f32::NAN, 0.0, 0.0, 0.0, 1.0, 0.0], None, None, "");
+        d.node(r#"{"mesh":0}"#);
+        let e = load(&d.write_embedded(&temp_dir("nan"), "nan")).unwrap_err();
+        assert!(matches!(e, SceneError::Invalid { ref element, .. } if element == "mesh 0 \"Bad\" primitive 0 attribute POSITION"), "{e}");
+        assert!(e.to_string().contains("vertex 1"), "{e}");
+    }
+
+    #[test]
+    fn index_out_of_range_is_invalid() {
+        let mut d = Doc::default();
+        d.mesh("Far", &[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], None, Some(&[0, 1, 7]), "");
+        d.node(r#"{"mesh":0}"#);
+        let e = load(&d.write_embedded(&temp_dir("oob"), "oob")).unwrap_err();
+        assert!(matches!(e, SceneError::Invalid { ref element, .. } if element == "mesh 0 \"Far\" primitive 0 indices"), "{e}");
+        assert!(e.to_string().contains("index 2 is 7"), "{e}");
+    }
+
+    #[test]
+    fn accessor_past_buffer_end_is_invalid_not_a_panic() {
+        let mut d = Doc::default();
+        d.triangle("");
+        d.node(r#"{"mesh":0}"#);
+        // claim 300 positions in a view that holds 3
+        let dir = temp_dir("short");
+        let json = d.json(Some("short.bin")).replacen(r#""count":3,"type":"VEC3""#, r#""count":300,"type":"VEC3""#, 1);
+        super::super::gltf_load::fixture::write(&dir, "short.bin", &d.bin);
+        let path = super::super::gltf_load::fixture::write(&dir, "short.gltf", json.as_bytes());
+        let e = load(&path).unwrap_err();
+        assert!(e.to_string().contains("attribute POSITION") && e.to_string().contains("reads past the end"), "{e}");
+    }
+}

@@ -23,8 +23,8 @@
 //! - **Lights** (`KHR_lights_punctual`): point, spot and directional, placed by their node's world
 //!   transform; lights point down their local -Z. `color * intensity` is read as radiometric
 //!   (W/sr for point and spot, W/m^2 for directional; no 683 lm/W conversion, see
-//!   [`PunctualLight`](super::PunctualLight)).
-//! - **Cameras**: perspective cameras become a [`Camera`](super::Camera) with `yfov` and the
+//!   [`PunctualLight`]).
+//! - **Cameras**: perspective cameras become a [`Camera`] with `yfov` and the
 //!   node's world transform with its scale removed (rigid only; a mirror is dropped too).
 //!
 //! # What is ignored
@@ -45,6 +45,7 @@
 //!
 //! Units: glTF is metres, right-handed, +Y up; we keep its coordinates as they are.
 
+use std::f32::consts::FRAC_PI_2;
 use std::path::Path;
 
 use glam::{Mat4, Quat, Vec3};
@@ -75,11 +76,8 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let root = doc.default_scene().or_else(|| doc.scenes().next()).ok_or_else(|| {
         SceneError::invalid(path, "scenes", "the file defines no scene; add a scene that lists the root nodes")
     })?;
-    let mut walker = Walker {
-        path,
-        on_path: vec![false; doc.nodes().len()],
-        flat: Flattener::new(path, &buffers, &mut scene),
-    };
+    let mut walker =
+        Walker { path, on_path: vec![false; doc.nodes().len()], flat: Flattener::new(path, &buffers, &mut scene) };
     for node in root.nodes() {
         walker.visit(node, Mat4::IDENTITY)?;
     }
@@ -132,7 +130,10 @@ fn check_extensions(path: &Path, root: &gltf::json::Root, warnings: &mut Vec<Str
             return Err(SceneError::unsupported(
                 path,
                 format!("extensionsRequired \"{ext}\""),
-                format!("extension {ext} is required by the file but not implemented (supported: {}); {fix}", SUPPORTED_EXTENSIONS.join(", ")),
+                format!(
+                    "extension {ext} is required by the file but not implemented (supported: {}); {fix}",
+                    SUPPORTED_EXTENSIONS.join(", ")
+                ),
             ));
         }
     }
@@ -156,7 +157,11 @@ fn load_buffers(
         let el = label("buffer", buffer.index(), buffer.name());
         let data = match buffer.source() {
             gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
-                SceneError::invalid(path, &el, "refers to the GLB binary chunk, but the file has none (or it is used twice)")
+                SceneError::invalid(
+                    path,
+                    &el,
+                    "refers to the GLB binary chunk, but the file has none (or it is used twice)",
+                )
             })?,
             gltf::buffer::Source::Uri(uri) => read_uri(path, base, uri, &el)?,
         };
@@ -164,7 +169,11 @@ fn load_buffers(
             return Err(SceneError::invalid(
                 path,
                 &el,
-                format!("holds {} bytes but byteLength is {}; the buffer file is truncated or stale", data.len(), buffer.length()),
+                format!(
+                    "holds {} bytes but byteLength is {}; the buffer file is truncated or stale",
+                    data.len(),
+                    buffer.length()
+                ),
             ));
         }
         out.push(data);
@@ -176,25 +185,32 @@ fn load_buffers(
 /// to `base`, the scene file's folder. `el` names the referring element for messages.
 pub(super) fn read_uri(path: &Path, base: &Path, uri: &str, el: &str) -> Result<Vec<u8>, SceneError> {
     if uri.starts_with("data:") {
-        return gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), None)
-            .map(|d| d.0)
-            .map_err(|e| SceneError::invalid(path, el, format!("data URI cannot be decoded ({e}); it must be base64")));
+        return gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), None).map(|d| d.0).map_err(|e| {
+            SceneError::invalid(path, el, format!("data URI cannot be decoded ({e}); it must be base64"))
+        });
     }
     if uri.contains("://") {
-        return Err(SceneError::unsupported(path, el, format!("URI \"{uri}\": only relative file paths and data URIs can be read; download the file next to the scene")));
+        return Err(SceneError::unsupported(
+            path,
+            el,
+            format!("URI \"{uri}\": only relative paths and data URIs are read; download the file next to the scene"),
+        ));
     }
     let file = base.join(percent_decode(uri));
     std::fs::read(&file).map_err(|e| {
         SceneError::invalid(
             path,
             el,
-            format!("file {} (uri \"{uri}\") cannot be read: {e}; put it next to the scene file or fix the uri", file.display()),
+            format!(
+                "file {} (uri \"{uri}\") cannot be read: {e}; put it next to the scene file or fix the uri",
+                file.display()
+            ),
         )
     })
 }
 
 /// Decode `%XX` escapes of a URI path (invalid escapes are kept as they are).
-fn percent_decode(uri: &str) -> String {
+pub(super) fn percent_decode(uri: &str) -> String {
     let bytes = uri.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -225,15 +241,21 @@ impl Walker<'_, '_> {
     fn visit(&mut self, node: gltf::Node, parent: Mat4) -> Result<(), SceneError> {
         let el = label("node", node.index(), node.name());
         if self.on_path[node.index()] {
-            return Err(SceneError::invalid(self.path, el, "the node hierarchy has a cycle (the node is its own ancestor)"));
+            return Err(SceneError::invalid(
+                self.path,
+                el,
+                "the node hierarchy has a cycle (the node is its own ancestor)",
+            ));
         }
         let local = match node.transform() {
             gltf::scene::Transform::Matrix { matrix } => Mat4::from_cols_array_2d(&matrix),
-            gltf::scene::Transform::Decomposed { translation, rotation, scale } => Mat4::from_scale_rotation_translation(
-                Vec3::from(scale),
-                Quat::from_array(rotation).normalize(),
-                Vec3::from(translation),
-            ),
+            gltf::scene::Transform::Decomposed { translation, rotation, scale } => {
+                Mat4::from_scale_rotation_translation(
+                    Vec3::from(scale),
+                    Quat::from_array(rotation).normalize(),
+                    Vec3::from(translation),
+                )
+            }
         };
         let world = parent * local;
         if !world.is_finite() {
@@ -281,7 +303,11 @@ impl Walker<'_, '_> {
 }
 
 /// A `KHR_lights_punctual` light placed by its node's world transform (lights look down -Z).
-fn punctual_light(path: &Path, light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Result<PunctualLight, SceneError> {
+fn punctual_light(
+    path: &Path,
+    light: &gltf::khr_lights_punctual::Light,
+    world: Mat4,
+) -> Result<PunctualLight, SceneError> {
     use gltf::khr_lights_punctual::Kind;
     let el = label("light", light.index(), light.name());
     let power = Vec3::from(light.color()) * light.intensity();
@@ -296,11 +322,14 @@ fn punctual_light(path: &Path, light: &gltf::khr_lights_punctual::Light, world: 
         Kind::Point => PunctualLight::Point { position, intensity: power },
         Kind::Directional => PunctualLight::Directional { direction: direction?, irradiance: power },
         Kind::Spot { inner_cone_angle, outer_cone_angle } => {
-            if !(0.0 <= inner_cone_angle && inner_cone_angle < outer_cone_angle) {
+            if !(0.0 <= inner_cone_angle && inner_cone_angle < outer_cone_angle && outer_cone_angle <= FRAC_PI_2) {
                 return Err(SceneError::invalid(
                     path,
                     el,
-                    format!("spot cone angles {inner_cone_angle} (inner) and {outer_cone_angle} (outer) must satisfy 0 <= inner < outer"),
+                    format!(
+                        "spot cone angles {inner_cone_angle} (inner) and {outer_cone_angle} (outer) \
+                         must satisfy 0 <= inner < outer <= pi/2"
+                    ),
                 ));
             }
             PunctualLight::Spot {
@@ -314,199 +343,9 @@ fn punctual_light(path: &Path, light: &gltf::khr_lights_punctual::Light, world: 
     })
 }
 
-/// Hand-built glTF files for the loader's tests (no extra dependencies: JSON strings, a binary
-/// buffer and a tiny base64 encoder).
-#[cfg(test)]
-pub(super) mod fixture {
-    use std::path::{Path, PathBuf};
-    use std::sync::atomic::{AtomicUsize, Ordering};
-
-    /// A glTF document under construction: JSON array entries plus one binary buffer.
-    #[derive(Default)]
-    pub struct Doc {
-        pub bin: Vec<u8>,
-        views: Vec<String>,
-        accessors: Vec<String>,
-        pub meshes: Vec<String>,
-        pub nodes: Vec<String>,
-        /// Root nodes of scene 0 (all nodes when empty).
-        pub roots: Option<Vec<usize>>,
-        /// Extra top-level `"key": value` entries (materials, images, extensions, ...).
-        pub extra: Vec<String>,
-    }
-
-    impl Doc {
-        /// Append raw bytes as a bufferView (4-byte aligned); returns the view index.
-        pub fn view(&mut self, bytes: &[u8]) -> usize {
-            let offset = self.bin.len();
-            self.bin.extend_from_slice(bytes);
-            while self.bin.len() % 4 != 0 {
-                self.bin.push(0);
-            }
-            self.views.push(format!(r#"{{"buffer":0,"byteOffset":{offset},"byteLength":{}}}"#, bytes.len()));
-            self.views.len() - 1
-        }
-
-        /// Float accessor of type `ty` ("VEC2", "VEC3") with min/max; returns its index.
-        pub fn floats(&mut self, data: &[f32], ty: &str) -> usize {
-            let dim = if ty == "VEC2" { 2 } else { 3 };
-            let bytes: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
-            let view = self.view(&bytes);
-            let (mut lo, mut hi) = (vec![f32::INFINITY; dim], vec![f32::NEG_INFINITY; dim]);
-            for (i, &v) in data.iter().enumerate() {
-                lo[i % dim] = lo[i % dim].min(v);
-                hi[i % dim] = hi[i % dim].max(v);
-            }
-            self.accessors.push(format!(
-                r#"{{"bufferView":{view},"componentType":5126,"count":{},"type":"{ty}","min":{lo:?},"max":{hi:?}}}"#,
-                data.len() / dim
-            ));
-            self.accessors.len() - 1
-        }
-
-        /// u16 index accessor; returns its index.
-        pub fn indices(&mut self, data: &[u16]) -> usize {
-            let bytes: Vec<u8> = data.iter().flat_map(|i| i.to_le_bytes()).collect();
-            let view = self.view(&bytes);
-            self.accessors
-                .push(format!(r#"{{"bufferView":{view},"componentType":5123,"count":{},"type":"SCALAR"}}"#, data.len()));
-            self.accessors.len() - 1
-        }
-
-        /// A mesh with one primitive from positions (+ optional normals, indices, extra JSON).
-        pub fn mesh(&mut self, name: &str, pos: &[f32], nrm: Option<&[f32]>, idx: Option<&[u16]>, prim_extra: &str) -> usize {
-            let p = self.floats(pos, "VEC3");
-            let mut attrs = format!(r#""POSITION":{p}"#);
-            if let Some(n) = nrm {
-                attrs += &format!(r#","NORMAL":{}"#, self.floats(n, "VEC3"));
-            }
-            let indices = idx.map(|i| format!(r#","indices":{}"#, self.indices(i))).unwrap_or_default();
-            self.meshes.push(format!(r#"{{"name":"{name}","primitives":[{{"attributes":{{{attrs}}}{indices}{prim_extra}}}]}}"#));
-            self.meshes.len() - 1
-        }
-
-        /// The unit right triangle in z = 0 with +Z normals, indexed.
-        pub fn triangle(&mut self, prim_extra: &str) -> usize {
-            let pos = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
-            let nrm = [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0];
-            self.mesh("Tri", &pos, Some(&nrm), Some(&[0, 1, 2]), prim_extra)
-        }
-
-        /// Add a node from its JSON body; returns its index.
-        pub fn node(&mut self, json: &str) -> usize {
-            self.nodes.push(json.to_string());
-            self.nodes.len() - 1
-        }
-
-        /// The JSON text, with the buffer at `uri` (None: the GLB blob).
-        pub fn json(&self, uri: Option<&str>) -> String {
-            let uri = uri.map(|u| format!(r#","uri":"{u}""#)).unwrap_or_default();
-            let roots = self.roots.clone().unwrap_or_else(|| (0..self.nodes.len()).collect());
-            let mut parts = vec![
-                r#""asset":{"version":"2.0"}"#.to_string(),
-                r#""scene":0"#.to_string(),
-                format!(r#""scenes":[{{"nodes":{roots:?}}}]"#),
-                format!(r#""nodes":[{}]"#, self.nodes.join(",")),
-            ];
-            if !self.meshes.is_empty() {
-                parts.push(format!(r#""meshes":[{}]"#, self.meshes.join(",")));
-            }
-            if !self.bin.is_empty() {
-                parts.push(format!(r#""buffers":[{{"byteLength":{}{uri}}}]"#, self.bin.len()));
-                parts.push(format!(r#""bufferViews":[{}]"#, self.views.join(",")));
-            }
-            if !self.accessors.is_empty() {
-                parts.push(format!(r#""accessors":[{}]"#, self.accessors.join(",")));
-            }
-            parts.extend(self.extra.iter().cloned());
-            format!("{{{}}}", parts.join(","))
-        }
-
-        /// Write `name.gltf` with the buffer as a data URI.
-        pub fn write_embedded(&self, dir: &Path, name: &str) -> PathBuf {
-            let uri = format!("data:application/octet-stream;base64,{}", base64(&self.bin));
-            write(dir, &format!("{name}.gltf"), self.json(Some(&uri)).as_bytes())
-        }
-
-        /// Write `name.gltf` plus `name.bin`.
-        pub fn write_external(&self, dir: &Path, name: &str) -> PathBuf {
-            write(dir, &format!("{name}.bin"), &self.bin);
-            write(dir, &format!("{name}.gltf"), self.json(Some(&format!("{name}.bin"))).as_bytes())
-        }
-
-        /// Write `name.glb` with the buffer in the BIN chunk.
-        pub fn write_glb(&self, dir: &Path, name: &str) -> PathBuf {
-            let mut json = self.json(None).into_bytes();
-            while json.len() % 4 != 0 {
-                json.push(b' ');
-            }
-            let total = 12 + 8 + json.len() + 8 + self.bin.len();
-            let mut out = Vec::new();
-            out.extend_from_slice(b"glTF");
-            out.extend_from_slice(&2u32.to_le_bytes());
-            out.extend_from_slice(&(total as u32).to_le_bytes());
-            out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-            out.extend_from_slice(&0x4E4F_534Au32.to_le_bytes());
-            out.extend_from_slice(&json);
-            out.extend_from_slice(&(self.bin.len() as u32).to_le_bytes());
-            out.extend_from_slice(&0x004E_4942u32.to_le_bytes());
-            out.extend_from_slice(&self.bin);
-            write(dir, &format!("{name}.glb"), &out)
-        }
-    }
-
-    /// Write `bytes` to `dir/name`, returning the path.
-    pub fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
-        let path = dir.join(name);
-        std::fs::write(&path, bytes).unwrap();
-        path
-    }
-
-    /// A fresh, unique temporary directory.
-    pub fn temp_dir(tag: &str) -> PathBuf {
-        static COUNTER: AtomicUsize = AtomicUsize::new(0);
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!("evblur-gltf-{tag}-{}-{n}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
-
-    /// Standard base64 with padding.
-    pub fn base64(bytes: &[u8]) -> String {
-        const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-        let mut out = String::new();
-        for chunk in bytes.chunks(3) {
-            let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
-            let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-            for k in 0..4 {
-                if k <= chunk.len() {
-                    out.push(ABC[(n >> (18 - 6 * k) & 63) as usize] as char);
-                } else {
-                    out.push('=');
-                }
-            }
-        }
-        out
-    }
-
-    /// A small RGBA8 PNG.
-    pub fn png(width: u32, height: u32, rgba: &[u8]) -> Vec<u8> {
-        let img = image::RgbaImage::from_raw(width, height, rgba.to_vec()).unwrap();
-        let mut out = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut out, image::ImageFormat::Png).unwrap();
-        out.into_inner()
-    }
-
-    /// Assert two vectors agree to `1e-5`.
-    pub fn assert_close(a: glam::Vec3, b: glam::Vec3) {
-        assert!((a - b).abs().max_element() < 1e-5, "{a} != {b}");
-    }
-}
-
 #[cfg(test)]
 mod tests {
-    use super::fixture::{assert_close, temp_dir, Doc};
+    use super::super::gltf_fixture::{self as fixture, assert_close, temp_dir, Doc};
     use super::*;
 
     /// sin 45 deg and cos 45 deg, for quarter-turn quaternions.
@@ -542,7 +381,9 @@ mod tests {
         );
         d.node(r#"{"translation":[1,2,3],"extensions":{"KHR_lights_punctual":{"light":0}}}"#);
         // +90 deg about X turns local -Z into +Y
-        d.node(&format!(r#"{{"translation":[0,0,4],"rotation":[{H},0,0,{H}],"extensions":{{"KHR_lights_punctual":{{"light":1}}}}}}"#));
+        d.node(&format!(
+            r#"{{"translation":[0,0,4],"rotation":[{H},0,0,{H}],"extensions":{{"KHR_lights_punctual":{{"light":1}}}}}}"#
+        ));
         // directional under a parent with a half turn about Y: -Z becomes +Z
         d.node(r#"{"extensions":{"KHR_lights_punctual":{"light":2}}}"#);
         d.node(r#"{"rotation":[0,1,0,0],"translation":[9,9,9],"children":[3]}"#);
@@ -635,7 +476,10 @@ mod tests {
         let mut d = Doc::default();
         d.node(r#"{"name":"Empty"}"#);
         let e = load(&d.write_embedded(&dir, "empty")).unwrap_err();
-        assert!(matches!(e, SceneError::Invalid { .. }) && e.to_string().contains("no (non-degenerate) triangles"), "{e}");
+        assert!(
+            matches!(e, SceneError::Invalid { .. }) && e.to_string().contains("no (non-degenerate) triangles"),
+            "{e}"
+        );
 
         let e = load(&dir.join("absent.gltf")).unwrap_err();
         assert!(matches!(e, SceneError::Io { .. }), "{e}");

@@ -10,7 +10,7 @@ use std::path::Path;
 use glam::Vec3;
 use gltf::texture::WrappingMode;
 
-use super::gltf_load::{label, read_uri};
+use super::gltf_load::{label, percent_decode, read_uri};
 use super::{Material, Texture, TextureRef, WrapMode};
 use crate::error::SceneError;
 
@@ -41,7 +41,11 @@ fn material(tex: &mut TextureLoader, m: &gltf::Material) -> Result<Material, Sce
     let strength = m.emissive_strength().unwrap_or(1.0);
     let emission = Vec3::from(m.emissive_factor()) * strength;
     let base_color = Vec3::new(r, g, b);
-    if !(base_color.is_finite() && base_color.min_element() >= 0.0 && emission.is_finite() && emission.min_element() >= 0.0) {
+    if !(base_color.is_finite()
+        && base_color.min_element() >= 0.0
+        && emission.is_finite()
+        && emission.min_element() >= 0.0)
+    {
         return Err(SceneError::invalid(
             tex.path,
             el,
@@ -55,7 +59,12 @@ fn material(tex: &mut TextureLoader, m: &gltf::Material) -> Result<Material, Sce
         metallic,
         specular: 1.0,
         roughness,
-        metallic_roughness_texture: tex.get(pbr.metallic_roughness_texture(), false, &el, "metallicRoughnessTexture")?,
+        metallic_roughness_texture: tex.get(
+            pbr.metallic_roughness_texture(),
+            false,
+            &el,
+            "metallicRoughnessTexture",
+        )?,
         emission,
         emission_texture: tex.get(m.emissive_texture(), true, &el, "emissiveTexture")?,
         double_sided: m.double_sided(),
@@ -141,7 +150,7 @@ impl TextureLoader<'_> {
             }
             gltf::image::Source::Uri { uri, .. } => {
                 let bytes = read_uri(path, self.base, uri, el)?;
-                Texture::decode(&bytes, &self.base.join(uri), srgb, el)?
+                Texture::decode(&bytes, &self.base.join(percent_decode(uri)), srgb, el)?
             }
         };
         texture.name = match (image.name(), image.source()) {
@@ -155,7 +164,7 @@ impl TextureLoader<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::gltf_load::fixture::{assert_close, base64, png, temp_dir, Doc};
+    use super::super::gltf_fixture::{assert_close, base64, png, temp_dir, Doc};
     use super::super::gltf_load::load;
     use super::super::texture::srgb_to_linear;
     use super::*;
@@ -169,7 +178,8 @@ mod tests {
         let mut d = Doc::default();
         let p = d.floats(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
         let uv = d.floats(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0], "VEC2");
-        d.meshes.push(format!(r#"{{"primitives":[{{"attributes":{{"POSITION":{p},"TEXCOORD_0":{uv}}},"material":0}}]}}"#));
+        d.meshes
+            .push(format!(r#"{{"primitives":[{{"attributes":{{"POSITION":{p},"TEXCOORD_0":{uv}}},"material":0}}]}}"#));
         d.node(r#"{"mesh":0}"#);
         d
     }
@@ -232,7 +242,8 @@ mod tests {
         assert_close(b.emission, Vec3::splat(0.25));
         assert_eq!(a.name, "material 0");
         assert!(!a.double_sided);
-        assert_eq!((a.metallic, a.roughness), (1.0, 1.0)); // glTF defaults
+        // glTF defaults
+        assert_eq!((a.metallic, a.roughness), (1.0, 1.0));
         // texture 0 (default sampler) decoded once for both materials; texture 1 shares the
         // image and colour space but not the sampler: same texels, its own wrap modes
         assert_eq!(a.emission_texture, Some(TextureRef { index: 0 }));
@@ -274,13 +285,14 @@ mod tests {
         ));
         let e = load(&d.write_embedded(&temp_dir("uv1"), "uv1")).unwrap_err();
         assert!(
-            matches!(e, SceneError::Unsupported { ref element, .. } if element == "material 0 \"Wood\" baseColorTexture"),
+            matches!(e, SceneError::Unsupported { ref element, .. }
+                if element == "material 0 \"Wood\" baseColorTexture"),
             "{e}"
         );
         assert!(e.to_string().contains("texCoord 1"), "{e}");
     }
 
     fn fixture_write(dir: &Path, name: &str, bytes: &[u8]) {
-        super::super::gltf_load::fixture::write(dir, name, bytes);
+        super::super::gltf_fixture::write(dir, name, bytes);
     }
 }

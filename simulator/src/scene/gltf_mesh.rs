@@ -61,9 +61,9 @@ impl<'a, 's> Flattener<'a, 's> {
 
         // vertex attributes: POSITION (required), NORMAL and TEXCOORD_0 (optional)
         let pos_el = format!("{el} attribute POSITION");
-        let acc = prim.get(&Semantic::Positions).ok_or_else(|| {
-            SceneError::invalid(path, &pos_el, "missing; every primitive needs vertex positions")
-        })?;
+        let acc = prim
+            .get(&Semantic::Positions)
+            .ok_or_else(|| SceneError::invalid(path, &pos_el, "missing; every primitive needs vertex positions"))?;
         self.check(&acc, Dimensions::Vec3, &[DataType::F32], &pos_el)?;
         let positions: Vec<Vec3> = reader.read_positions().map(|it| it.map(Vec3::from).collect()).unwrap_or_default();
         self.check_read(positions.len(), &acc, &pos_el)?;
@@ -75,7 +75,8 @@ impl<'a, 's> Flattener<'a, 's> {
             Some(acc) => {
                 let nrm_el = format!("{el} attribute NORMAL");
                 self.check(&acc, Dimensions::Vec3, &[DataType::F32], &nrm_el)?;
-                let normals: Vec<Vec3> = reader.read_normals().map(|it| it.map(Vec3::from).collect()).unwrap_or_default();
+                let normals: Vec<Vec3> =
+                    reader.read_normals().map(|it| it.map(Vec3::from).collect()).unwrap_or_default();
                 self.check_read(normals.len(), &acc, &nrm_el)?;
                 self.check_same_count(normals.len(), n, &nrm_el)?;
                 check_finite(path, &normals, Vec3::is_finite, &nrm_el)?;
@@ -214,16 +215,20 @@ impl<'a, 's> Flattener<'a, 's> {
     fn check_range(&self, view: &gltf::buffer::View, offset: usize, size: usize, count: usize) -> Result<(), String> {
         let stride = view.stride().unwrap_or(size);
         if stride < size {
-            return Err(format!("bufferView {} byteStride {stride} is smaller than the element size {size}", view.index()));
+            return Err(format!(
+                "bufferView {} byteStride {stride} is smaller than the element size {size}",
+                view.index()
+            ));
         }
         let data_len = self.buffers.get(view.buffer().index()).map_or(0, Vec::len);
         let view_end = view.offset().checked_add(view.length());
-        let needed = stride.checked_mul(count - 1).and_then(|b| b.checked_add(size)).and_then(|b| b.checked_add(offset));
+        let needed =
+            stride.checked_mul(count - 1).and_then(|b| b.checked_add(size)).and_then(|b| b.checked_add(offset));
         match (view_end, needed) {
             (Some(end), Some(needed)) if end <= data_len && needed <= view.length() => Ok(()),
             _ => Err(format!(
-                "reads past the end of bufferView {} or its buffer ({count} elements of {size} bytes at offset {offset}, \
-                 stride {stride}); the file is truncated or inconsistent",
+                "reads past the end of bufferView {} or its buffer ({count} elements of {size} bytes at \
+                 offset {offset}, stride {stride}); the file is truncated or inconsistent",
                 view.index()
             )),
         }
@@ -274,7 +279,7 @@ fn assemble(mode: Mode, ids: &[u32]) -> Result<Vec<[u32; 3]>, String> {
     let n = ids.len();
     Ok(match mode {
         Mode::Triangles => {
-            if n % 3 != 0 {
+            if !n.is_multiple_of(3) {
                 return Err(format!("mode TRIANGLES with {n} vertex ids, which is not a multiple of 3"));
             }
             ids.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
@@ -289,7 +294,7 @@ fn assemble(mode: Mode, ids: &[u32]) -> Result<Vec<[u32; 3]>, String> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::gltf_load::fixture::{assert_close, temp_dir, Doc};
+    use super::super::gltf_fixture::{assert_close, temp_dir, Doc};
     use super::super::gltf_load::load;
     use super::*;
 
@@ -413,10 +418,12 @@ mod tests {
             assert_close(geometric_normal(m, i), Vec3::Z);
         }
         // the two halves of each square cover area 1
-        let area: f32 = (0..2).map(|i| {
-            let [a, b, c] = m.corners(i);
-            0.5 * (b - a).cross(c - a).length()
-        }).sum();
+        let area: f32 = (0..2)
+            .map(|i| {
+                let [a, b, c] = m.corners(i);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum();
         assert!((area - 1.0).abs() < 1e-6);
     }
 
@@ -441,7 +448,10 @@ mod tests {
         d.node(r#"{"mesh":0}"#);
         d.node(r#"{"mesh":1}"#);
         let e = load(&d.write_embedded(&temp_dir("points"), "points")).unwrap_err();
-        assert!(matches!(e, SceneError::Unsupported { ref element, .. } if element == "mesh 1 \"Dots\" primitive 0"), "{e}");
+        assert!(
+            matches!(e, SceneError::Unsupported { ref element, .. } if element == "mesh 1 \"Dots\" primitive 0"),
+            "{e}"
+        );
         assert!(e.to_string().contains("Points"), "{e}");
     }
 
@@ -451,7 +461,11 @@ mod tests {
         d.mesh("Bad", &[0.0, 0.0, 0.0, f32::NAN, 0.0, 0.0, 0.0, 1.0, 0.0], None, None, "");
         d.node(r#"{"mesh":0}"#);
         let e = load(&d.write_embedded(&temp_dir("nan"), "nan")).unwrap_err();
-        assert!(matches!(e, SceneError::Invalid { ref element, .. } if element == "mesh 0 \"Bad\" primitive 0 attribute POSITION"), "{e}");
+        assert!(
+            matches!(e, SceneError::Invalid { ref element, .. }
+                if element == "mesh 0 \"Bad\" primitive 0 attribute POSITION"),
+            "{e}"
+        );
         assert!(e.to_string().contains("vertex 1"), "{e}");
     }
 
@@ -461,7 +475,10 @@ mod tests {
         d.mesh("Far", &[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], None, Some(&[0, 1, 7]), "");
         d.node(r#"{"mesh":0}"#);
         let e = load(&d.write_embedded(&temp_dir("oob"), "oob")).unwrap_err();
-        assert!(matches!(e, SceneError::Invalid { ref element, .. } if element == "mesh 0 \"Far\" primitive 0 indices"), "{e}");
+        assert!(
+            matches!(e, SceneError::Invalid { ref element, .. } if element == "mesh 0 \"Far\" primitive 0 indices"),
+            "{e}"
+        );
         assert!(e.to_string().contains("index 2 is 7"), "{e}");
     }
 
@@ -473,8 +490,8 @@ mod tests {
         // claim 300 positions in a view that holds 3
         let dir = temp_dir("short");
         let json = d.json(Some("short.bin")).replacen(r#""count":3,"type":"VEC3""#, r#""count":300,"type":"VEC3""#, 1);
-        super::super::gltf_load::fixture::write(&dir, "short.bin", &d.bin);
-        let path = super::super::gltf_load::fixture::write(&dir, "short.gltf", json.as_bytes());
+        super::super::gltf_fixture::write(&dir, "short.bin", &d.bin);
+        let path = super::super::gltf_fixture::write(&dir, "short.gltf", json.as_bytes());
         let e = load(&path).unwrap_err();
         assert!(e.to_string().contains("attribute POSITION") && e.to_string().contains("reads past the end"), "{e}");
     }

@@ -16,6 +16,10 @@ pub mod camera;
 pub mod description;
 pub mod environment;
 pub mod gltf_load;
+#[cfg(test)]
+mod gltf_fixture;
+mod gltf_material;
+mod gltf_mesh;
 pub mod obj_load;
 pub mod texture;
 

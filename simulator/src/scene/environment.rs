@@ -92,6 +92,7 @@ impl Environment {
     pub fn power_integral(&self) -> f32 {
         match self {
             Environment::Constant(c) => 4.0 * std::f32::consts::PI * crate::render::lights::luminance(*c),
+            Environment::Map(m) => m.power_integral(),
         }
     }
     /// Density of [`Environment::sample`] for direction `d`, w.r.t. solid angle.
@@ -261,6 +262,23 @@ impl EnvMap {
     }
 
     /// True when the map emits nothing.
+    /// Integral of the luminance of the radiance over the sphere (texel sums, `sin theta` weighted).
+    pub fn power_integral(&self) -> f32 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let d_omega = (std::f64::consts::TAU / w as f64) * (std::f64::consts::PI / h as f64);
+        let mut sum = 0.0f64;
+        for y in 0..h {
+            let sin_theta = (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
+            let row: f64 = self.texels[y * w..(y + 1) * w]
+                .iter()
+                .map(|&t| crate::render::lights::luminance(t) as f64)
+                .sum();
+            sum += row * sin_theta * d_omega;
+        }
+        (sum * self.scale as f64) as f32
+    }
+
+    /// True when the map adds no light.
     pub fn is_black(&self) -> bool {
         self.scale == 0.0 || self.distribution.marginal.total <= 0.0
     }

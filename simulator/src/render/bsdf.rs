@@ -274,6 +274,14 @@ impl Bsdf {
         }
     }
 
+    /// [`Bsdf::eval`] and [`Bsdf::pdf`] in one call (they share most of the work).
+    pub fn eval_and_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        match Self::half_vector(wo, wi) {
+            Some(h) => self.eval_pdf(wo, wi, h),
+            None => (Vec3::ZERO, 0.0),
+        }
+    }
+
     /// Solid-angle density with which [`Bsdf::sample`] produces `wi` (the lobe mixture); zero
     /// unless both directions are above the surface.
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {

@@ -200,11 +200,11 @@ impl<'a> Renderer<'a> {
             if let Some(ls) = self.lights.sample(scene, sh.p, u_sel, u_light) {
                 let wi_local = sh.frame.to_local(ls.wi);
                 if ls.wi.dot(ng_side) > 0.0 {
-                    let f = bsdf.eval(wo, wi_local);
+                    let (f, bsdf_pdf) = bsdf.eval_and_pdf(wo, wi_local);
                     if f != Vec3::ZERO {
                         let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) - 1e-4 } else { f32::INFINITY };
                         if !self.accel.occluded(p_off, ls.wi, 0.0, tmax) {
-                            let w = if ls.is_delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo, wi_local)) };
+                            let w = if ls.is_delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
                             l += beta * f * ls.radiance * (w / ls.pdf);
                         }
                     }

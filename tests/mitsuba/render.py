@@ -36,6 +36,16 @@ def convert(obj, base, mi):
     return obj
 
 
+def llvm_ok():
+    """True when a system libLLVM >= 19 is installed (Dr.Jit finds it by itself)."""
+    import glob
+    for path in glob.glob("/usr/lib/*/libLLVM*.so*") + glob.glob("/usr/lib/llvm-*/lib/libLLVM*.so*"):
+        digits = "".join(c if c.isdigit() else " " for c in os.path.basename(path)).split()
+        if digits and int(digits[0]) >= 19:
+            return True
+    return False
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("scene_json")
@@ -48,6 +58,10 @@ def main():
     import mitsuba as mi
 
     variant = args.variant
+    if variant.startswith("llvm") and not os.environ.get("DRJIT_LIBLLVM_PATH") and not llvm_ok():
+        # with LLVM < 19 the llvm variants abort the whole process mid-render
+        print(f"render.py: no libLLVM >= 19 found; using scalar_rgb instead of {variant}", file=sys.stderr)
+        variant = "scalar_rgb"
     try:
         mi.set_variant(variant)
     except Exception as e:  # variant not compiled in, or no usable LLVM

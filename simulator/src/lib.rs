@@ -9,6 +9,7 @@
 //! - [`error`]: the typed errors every loader returns.
 
 pub mod error;
+pub mod export;
 pub mod image_io;
 pub mod render;
 pub mod scene;

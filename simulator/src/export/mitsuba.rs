@@ -31,9 +31,11 @@
 //!   (degrees). Mitsuba's spot falloff between the cones is linear in angle, ours is glTF's
 //!   smooth curve: spots match only outside the transition band.
 //! - constant environment -> `constant`; map -> `envmap` with the same `to_world`. Mitsuba's
-//!   envmap lookup uses texel centres along u but puts rows 0 and h-1 on the poles
-//!   (`v * (h - 1)`), so a map matches ours only up to half a texel in latitude: reference
-//!   scenes use smooth maps and keep the sky out of the frame.
+//!   envmap lookup uses texel centres along u (as ours) but puts rows 0 and h-1 on the poles
+//!   (`y = v (h - 1)`), where ours puts row centres at `(j + 1/2) / h` and clamps at the poles.
+//!   The exporter therefore writes a `2h + 1`-row map whose odd rows are ours and whose even
+//!   rows (the poles and our row boundaries) are the mean of their neighbours: Mitsuba's
+//!   piecewise-linear lookup through those knots is then exactly ours.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -287,26 +289,21 @@ fn punctual(light: &PunctualLight) -> Json {
 }
 
 /// The environment emitter, or `None` for a black environment.
-fn environment(env: &Environment, _out_dir: &Path) -> Result<Option<Json>, ExportError> {
+fn environment(env: &Environment, out_dir: &Path) -> Result<Option<Json>, ExportError> {
     #[allow(unreachable_patterns)]
     match env {
         Environment::Constant(c) if c.max_element() <= 0.0 => Ok(None),
         Environment::Constant(c) => {
             Ok(Some(Json::Obj(vec![("type".into(), Json::str("constant")), ("radiance".into(), rgb(*c))])))
         }
-        // TODO(merge): when `Environment::Map(EnvMap)` lands, replace this arm by
-        //   Environment::Map(map) => envmap_emitter(map.width, map.height, &map.texels, map.scale,
-        //       map.to_world, _out_dir).map(Some),
-        _ => Err(ExportError::not_exportable(
-            "environment",
-            "this environment kind is not wired into the Mitsuba exporter yet (see envmap_emitter)",
-        )),
+        Environment::Map(map) => {
+            envmap_emitter(map.width, map.height, &map.texels, map.scale, map.to_world, out_dir).map(Some)
+        }
     }
 }
 
 /// Write an equirectangular environment map (row-major RGB, row 0 = +Y) as `envmap.exr` and
 /// return its `envmap` dict; `to_world` maps map-local directions to world directions.
-#[allow(dead_code)] // TODO(merge): called from `environment` once `Environment::Map` exists
 pub(crate) fn envmap_emitter(
     width: u32,
     height: u32,
@@ -321,7 +318,16 @@ pub(crate) fn envmap_emitter(
             format!("{width}x{height} map with {} texels: Mitsuba needs at least 2x3 and a full image", texels.len()),
         ));
     }
-    write_exr(&out_dir.join("envmap.exr"), width as usize, height as usize, texels)?;
+    // resample to Mitsuba's pole-to-pole rows (see the module doc): row k sits at v = k / (2h)
+    let (w, h) = (width as usize, height as usize);
+    let mut rows = Vec::with_capacity(w * (2 * h + 1));
+    for k in 0..=2 * h {
+        for x in 0..w {
+            let ours = |j: usize| texels[j.min(h - 1) * w + x];
+            rows.push(if k % 2 == 1 { ours(k / 2) } else { 0.5 * (ours((k / 2).saturating_sub(1)) + ours(k / 2)) });
+        }
+    }
+    write_exr(&out_dir.join("envmap.exr"), w, 2 * h + 1, &rows)?;
     let m = glam::Mat4::from_mat3(to_world);
     let rows: Vec<Json> = (0..4).map(|r| Json::Arr(m.row(r).to_array().iter().map(|&v| Json::Num(v as f64)).collect())).collect();
     Ok(Json::Obj(vec![

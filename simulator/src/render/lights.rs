@@ -1,12 +1,15 @@
 //! Light sampling for next-event estimation.
 //!
-//! Every light is one entry of a single [`Distribution1D`], chosen with probability proportional
-//! to its power `Phi` (pbrt's power light sampler):
+//! Every light is one entry of a single [`Distribution1D`]. As in pbrt-v4's BVH light sampler,
+//! the *infinite* lights (environment, directional lights) and the group of all *bounded* lights
+//! share the selection probability equally (`1 / (n_infinite + 1)` each), because an infinite
+//! light's power (`pi r^2 ...`) says little about how much of it reaches a given point. Within
+//! the bounded group, lights are chosen in proportion to their power `Phi`:
 //! - emissive triangle: `Phi = pi * A * lum(Le)` (doubled when two-sided), sampled uniformly by
 //!   area and converted to solid angle (`pdf = p_sel / A * d^2 / |cos theta_l|`);
-//! - point light: `Phi = 4 pi lum(I)`; spot: `Phi = 2 pi lum(I) (1 - (cos inner + cos outer)/2)`;
-//! - directional light: `Phi = pi r^2 lum(E)` with `r` the scene's bounding-sphere radius;
-//! - environment: `Phi = pi r^2 * integral of lum(L) over the sphere` (`4 pi lum(L)` if constant).
+//! - point light: `Phi = 4 pi lum(I)`; spot: `Phi = 2 pi lum(I) (1 - (cos inner + cos outer)/2)`.
+//!
+//! The environment's direction is then importance-sampled by its own map distribution.
 //!
 //! Punctual and directional lights are delta lights: they are reached only by NEE, never by
 //! BSDF sampling, so their contribution needs no MIS weight.
@@ -102,9 +105,9 @@ impl Lights {
     /// Gather every light of `scene` and build the power distribution.
     pub fn new(scene: &Scene) -> Lights {
         let bounds = bounding_sphere(scene);
-        let r2 = bounds.1 * bounds.1;
         let mut table = Vec::new();
         let mut power = Vec::new();
+        let mut infinite = Vec::new();
         let mut area = Vec::new();
         let mut tri_entry = vec![u32::MAX; scene.mesh.len()];
         for (i, &m) in scene.mesh.material.iter().enumerate() {
@@ -126,27 +129,44 @@ impl Lights {
             tri_entry[i] = table.len() as u32;
             table.push(LightRef::Triangle(i as u32));
             power.push(sides * std::f32::consts::PI * tri_area * luminance(le));
+            infinite.push(false);
             area.push(tri_area);
         }
         for (i, l) in scene.lights.iter().enumerate() {
-            let phi = match l {
-                PunctualLight::Point { intensity, .. } => 4.0 * std::f32::consts::PI * luminance(*intensity),
-                PunctualLight::Spot { intensity, inner_cone, outer_cone, .. } => {
-                    std::f32::consts::TAU * luminance(*intensity) * (1.0 - 0.5 * (inner_cone.cos() + outer_cone.cos()))
-                }
-                PunctualLight::Directional { irradiance, .. } => std::f32::consts::PI * r2 * luminance(*irradiance),
+            let (phi, is_infinite) = match l {
+                PunctualLight::Point { intensity, .. } => (4.0 * std::f32::consts::PI * luminance(*intensity), false),
+                PunctualLight::Spot { intensity, inner_cone, outer_cone, .. } => (
+                    std::f32::consts::TAU * luminance(*intensity) * (1.0 - 0.5 * (inner_cone.cos() + outer_cone.cos())),
+                    false,
+                ),
+                PunctualLight::Directional { irradiance, .. } => (luminance(*irradiance), true),
             };
             table.push(LightRef::Punctual(i as u32));
             power.push(phi);
+            infinite.push(is_infinite);
             area.push(0.0);
         }
         let mut env_entry = None;
         if !scene.environment.is_black() {
             env_entry = Some(table.len() as u32);
             table.push(LightRef::Environment);
-            power.push(std::f32::consts::PI * r2 * scene.environment.power_integral());
+            power.push(scene.environment.power_integral());
+            infinite.push(true);
             area.push(0.0);
         }
+        // equal shares for each infinite light and for the bounded group; power within the group
+        let bounded_total: f32 = power.iter().zip(&infinite).filter(|(p, &inf)| !inf && **p > 0.0).map(|(p, _)| *p).sum();
+        let n_infinite = infinite.iter().zip(&power).filter(|(&inf, p)| inf && **p > 0.0).count();
+        let shares = n_infinite as f32 + if bounded_total > 0.0 { 1.0 } else { 0.0 };
+        let power: Vec<f32> = power
+            .iter()
+            .zip(&infinite)
+            .map(|(&p, &inf)| match (inf, p > 0.0) {
+                (_, false) => 0.0,
+                (true, true) => 1.0 / shares,
+                (false, true) => p / bounded_total / shares,
+            })
+            .collect();
         let distribution = Distribution1D::new(&power);
         Lights { table, distribution, tri_entry, area, env_entry, bounds }
     }

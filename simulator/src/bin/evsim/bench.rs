@@ -85,7 +85,7 @@ fn render_bench(b: &RenderBench) -> Result<()> {
     let mitsuba = if b.no_mitsuba { None } else { mitsuba_python() };
     let export_dir = std::env::temp_dir().join(format!("evblur-bench-{}", std::process::id()));
     if mitsuba.is_some() {
-        // MERGE: simulator::export::mitsuba::export_mitsuba(&scene, &st, &export_dir)?;
+        simulator::export::mitsuba::export_mitsuba(&scene, &st, &export_dir)?;
     }
     let (mut ours, mut theirs) = (vec![], vec![]);
     for _ in 0..b.repeats {

@@ -1,4 +1,4 @@
-//! Our path tracer against Mitsuba 3 on the scenes in `tests/reference/`.
+//! Our path tracer against Mitsuba 3 on the reference scenes in `scenes/` (cornell, textured_env, rough_metal).
 //!
 //! For each scene: load `scene.toml`, export it with `simulator::export::export_mitsuba`, render
 //! a ground truth with Mitsuba at `GT_SPP` (cached under `~/.cache/evblur/mitsuba-gt/<hash>.exr`,
@@ -128,7 +128,7 @@ struct Row {
 }
 
 fn check_scene(python: &Path, variant: &str, name: &'static str) -> Row {
-    let toml = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference").join(name).join("scene.toml");
+    let toml = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name).join("scene.toml");
     let scene = simulator::scene::load(&toml).unwrap_or_else(|e| panic!("{e}"));
     let camera = scene.cameras.first().cloned().unwrap_or_else(|| panic!("{}: no camera", toml.display()));
     let mut settings = RenderSettings::new(camera);

@@ -87,13 +87,15 @@ fn render_bench(b: &RenderBench) -> Result<()> {
     if mitsuba.is_some() {
         simulator::export::mitsuba::export_mitsuba(&scene, &st, &export_dir)?;
     }
-    let (mut ours, mut theirs) = (vec![], vec![]);
+    let (mut ours, mut theirs, mut variant) = (vec![], vec![], String::new());
     for _ in 0..b.repeats {
         let t = Instant::now();
         std::hint::black_box(renderer.render(&st, None));
         ours.push(t.elapsed().as_secs_f64());
         if let Some(py) = &mitsuba {
-            theirs.push(mitsuba_time(py, &export_dir, st.spp)?);
+            let (t, v) = mitsuba_time(py, &export_dir, st.spp)?;
+            theirs.push(t);
+            variant = v;
         }
     }
     let t_ours = median(ours.clone());
@@ -101,7 +103,7 @@ fn render_bench(b: &RenderBench) -> Result<()> {
     println!("  evblur : median {:.3} s  {:.2} M samples/s  (runs {:?})", t_ours, samples / t_ours / 1e6, round3(&ours));
     if !theirs.is_empty() {
         let t_m = median(theirs.clone());
-        println!("  mitsuba: median {:.3} s  {:.2} M samples/s  (runs {:?})", t_m, samples / t_m / 1e6, round3(&theirs));
+        println!("  mitsuba {variant}: median {:.3} s  {:.2} M samples/s  (runs {:?})", t_m, samples / t_m / 1e6, round3(&theirs));
         println!("  ratio evblur/mitsuba samples/s: {:.2}x", t_m / t_ours);
     } else {
         println!("  mitsuba: not measured (no venv; run the test command once, or set EVBLUR_MITSUBA_PYTHON)");
@@ -114,8 +116,9 @@ fn round3(v: &[f64]) -> Vec<f64> {
     v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
 }
 
-/// Time one Mitsuba render of the exported scene (JIT warm-up excluded by the driver).
-fn mitsuba_time(py: &Path, dir: &Path, spp: u32) -> Result<f64> {
+/// Time one Mitsuba render of the exported scene (JIT warm-up excluded by the driver); returns
+/// the seconds and the variant that ran.
+fn mitsuba_time(py: &Path, dir: &Path, spp: u32) -> Result<(f64, String)> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/mitsuba/render.py");
     let out = dir.join("bench.exr");
     let o = Command::new(py)
@@ -129,9 +132,10 @@ fn mitsuba_time(py: &Path, dir: &Path, spp: u32) -> Result<f64> {
         bail!("mitsuba driver failed: {}", String::from_utf8_lossy(&o.stderr));
     }
     let stdout = String::from_utf8_lossy(&o.stdout);
-    let line = stdout.lines().rev().find(|l| l.contains("render_seconds")).context("driver printed no timing")?;
+    let line = stdout.lines().rev().find(|l| l.contains("render_s")).context("driver printed no timing")?;
     let v: serde_json::Value = serde_json::from_str(line)?;
-    v["render_seconds"].as_f64().context("render_seconds missing")
+    let variant = v["variant"].as_str().unwrap_or("?").to_string();
+    Ok((v["render_s"].as_f64().context("render_s missing")?, variant))
 }
 
 /// A closed, bumpy sphere of about `n` triangles (lat-long grid, radius modulated).

@@ -7,13 +7,12 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The file could not be read at all (missing, permissions, ...).
-    #[error("{path}: cannot read file: {source}")]
+    #[error("{path}: cannot read file: {cause}")]
     Io {
         /// The file that failed.
         path: PathBuf,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
+        /// The underlying error (already part of the message).
+        cause: std::io::Error,
     },
     /// The file was read but its content is not valid for its format.
     #[error("{path}: {element}: {message}")]
@@ -52,6 +51,6 @@ impl SceneError {
     }
     /// Shorthand for [`SceneError::Io`].
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        SceneError::Io { path: path.into(), source }
+        SceneError::Io { path: path.into(), cause: source }
     }
 }

@@ -15,8 +15,12 @@ fn temp_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
 }
 
-/// Write `bytes` to `path` atomically (temporary file + rename).
+/// Write `bytes` to `path` atomically (temporary file + rename), creating missing folders.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("{}: cannot create the output folder; choose another --out", parent.display()))?;
+    }
     let tmp = temp_path(path);
     std::fs::write(&tmp, bytes).with_context(|| {
         format!("{}: cannot write (is the folder there and writable? create it or choose another --out)", tmp.display())
@@ -113,8 +117,8 @@ mod tests {
     #[test]
     fn unwritable_output_is_a_clear_error() {
         let img = Image::new(1, 1);
-        let err = write_image(&img, Path::new("/nonexistent-dir/x.png")).unwrap_err();
-        assert!(format!("{err:#}").contains("/nonexistent-dir"), "{err:#}");
+        let err = write_image(&img, Path::new("/proc/nonexistent-dir/x.png")).unwrap_err();
+        assert!(format!("{err:#}").contains("/proc/nonexistent-dir"), "{err:#}");
         let err = write_image(&img, Path::new("x.bmp")).unwrap_err();
         assert!(format!("{err:#}").contains(".exr"), "{err:#}");
     }

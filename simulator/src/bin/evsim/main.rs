@@ -171,9 +171,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     write_image(&img, &args.out).with_context(|| format!("writing {}", args.out.display()))?;
     let samples = st.width as f64 * st.height as f64 * st.spp as f64;
     println!(
-        "{}: {} triangles, {} lights; load {:.2} s, BVH {:.2} s, render {:.2} s ({:.2} M samples/s); wrote {}",
+        "{}: {} triangles ({} emissive), {} punctual lights; load {:.2} s, BVH {:.2} s, render {:.2} s ({:.2} M samples/s); wrote {}",
         args.scene.display(),
         scene.mesh.len(),
+        scene.mesh.material.iter().filter(|&&m| scene.materials[m as usize].is_emissive()).count(),
         scene.lights.len(),
         load_s,
         build_s,

@@ -2,6 +2,7 @@
 
 use glam::Vec3;
 
+use super::sampler::SamplerKind;
 use crate::scene::Camera;
 
 /// A linear-light RGB image, row-major, row 0 at the top.
@@ -50,11 +51,23 @@ pub struct RenderSettings {
     pub frame: u64,
     /// The camera to render from.
     pub camera: Camera,
+    /// Where the random numbers come from.
+    pub sampler: SamplerKind,
 }
 
 impl RenderSettings {
-    /// Defaults: 600x400, 64 spp, max depth 5, roulette from depth 5, seed 0, frame 0.
+    /// Defaults: 600x400, 64 spp, max depth 5, roulette from depth 5, seed 0, frame 0, Sobol.
     pub fn new(camera: Camera) -> RenderSettings {
-        RenderSettings { width: 600, height: 400, spp: 64, max_depth: 5, rr_depth: 5, seed: 0, frame: 0, camera }
+        RenderSettings {
+            width: 600,
+            height: 400,
+            spp: 64,
+            max_depth: 5,
+            rr_depth: 5,
+            seed: 0,
+            frame: 0,
+            camera,
+            sampler: SamplerKind::default(),
+        }
     }
 }

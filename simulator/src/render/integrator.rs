@@ -7,8 +7,9 @@
 //! Depth follows Mitsuba: `max_depth` counts path segments, so 1 shows emitters only and 2 gives
 //! direct lighting; Russian roulette starts at `rr_depth` with survival
 //! `q = min(max(beta), 0.95)`. Pixels use a box filter: each sample is uniform in its pixel and
-//! the pixel value is the plain mean. Every sample's random stream is a function of
-//! (seed, pixel, frame, sample), so the image does not depend on thread count or tile order.
+//! the pixel value is the plain mean. Every sample's numbers come from a
+//! [`SampleStream`] that is a function of (seed, pixel, frame, sample), so the image does not
+//! depend on thread count or tile order.
 
 use glam::{Vec2, Vec3};
 use indicatif::ProgressBar;
@@ -18,7 +19,8 @@ use super::accel::{Accel, BvhPreset, Hit};
 use super::bsdf::Bsdf;
 use super::film::{Image, RenderSettings};
 use super::lights::{emitted, Lights};
-use super::sampling::{power_heuristic, Frame, Rng};
+use super::sampler::SampleStream;
+use super::sampling::{power_heuristic, Frame};
 use crate::scene::Scene;
 
 /// Side of the square tiles rendered in parallel.
@@ -99,8 +101,9 @@ impl<'a> Renderer<'a> {
         let origin = s.camera.origin();
         let mut sum = Vec3::ZERO;
         for i in 0..s.spp {
-            let mut rng = Rng::for_sample(s.seed, pixel_index, s.frame, i as u64);
-            let film = Vec2::new(x as f32, y as f32) + rng.next_2d();
+            let mut rng = SampleStream::new(s.sampler, s.seed, pixel_index, s.frame, i);
+            let c = rng.next_4d();
+            let film = Vec2::new(x as f32 + c[0], y as f32 + c[1]);
             let dir = s.camera.direction(film, s.width, s.height);
             let l = self.li(origin, dir, s, &mut rng);
             // a non-finite sample would poison the pixel: drop it (counts as black)
@@ -149,7 +152,7 @@ impl<'a> Renderer<'a> {
     }
 
     /// Radiance arriving at `origin` from direction `dir` (one path sample).
-    pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut Rng) -> Vec3 {
+    pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
         let scene = self.scene;
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
@@ -194,9 +197,13 @@ impl<'a> Renderer<'a> {
             let ng_side = if sh.front { sh.ng } else { -sh.ng };
             let p_off = offset_origin(sh.p, ng_side);
 
+            // this bounce's numbers: light sample + selection, BSDF sample + lobe + roulette
+            let a = rng.next_4d();
+            let b = rng.next_4d();
+            let (u_light, u_sel) = (Vec2::new(a[0], a[1]), a[2]);
+            let (u_dir, u_lobe, u_rr) = (Vec2::new(b[0], b[1]), b[2], b[3]);
+
             // next-event estimation: one light sampled by power
-            let u_sel = rng.next_f32();
-            let u_light = rng.next_2d();
             if let Some(ls) = self.lights.sample(scene, sh.p, u_sel, u_light) {
                 let wi_local = sh.frame.to_local(ls.wi);
                 if ls.wi.dot(ng_side) > 0.0 {
@@ -212,8 +219,6 @@ impl<'a> Renderer<'a> {
             }
 
             // continue the path along a BSDF sample
-            let u_lobe = rng.next_f32();
-            let u_dir = rng.next_2d();
             let Some(bs) = bsdf.sample(wo, u_lobe, u_dir) else { break };
             let wi = sh.frame.to_world(bs.wi);
             if wi.dot(ng_side) <= 0.0 {
@@ -225,7 +230,6 @@ impl<'a> Renderer<'a> {
             }
 
             // Russian roulette
-            let u_rr = rng.next_f32();
             if depth >= s.rr_depth {
                 let q = beta.max_element().min(0.95);
                 if u_rr >= q {

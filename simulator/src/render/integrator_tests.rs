@@ -50,7 +50,7 @@ fn lambert(albedo: f32, emission: f32) -> Material {
 
 fn settings(spp: u32, max_depth: u32) -> RenderSettings {
     let cam = Camera::look_at(Vec3::new(0.0, 0.0, 0.5), Vec3::ZERO, Vec3::Y, 1.2);
-    RenderSettings { width: 16, height: 12, spp, max_depth, rr_depth: 5, seed: 3, frame: 0, camera: cam }
+    RenderSettings { width: 16, height: 12, spp, max_depth, seed: 3, ..RenderSettings::new(cam) }
 }
 
 fn furnace_scene() -> Scene {

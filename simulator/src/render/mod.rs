@@ -1,5 +1,6 @@
 //! Turning a [`Scene`](crate::scene::Scene) into an image.
 //!
+//! - [`sampler`]: where a camera sample's numbers come from (independent or Owen-scrambled Sobol).
 //! - [`sampling`]: the per-sample RNG, warps, 1D/2D distributions, frames, MIS weights.
 //! - [`accel`]: the obvhs BVH over the scene's triangles; closest-hit and shadow queries.
 //! - [`bsdf`]: Lambert + GGX metallic-roughness (sample / eval / pdf).
@@ -14,4 +15,5 @@ pub mod chi2;
 pub mod film;
 pub mod integrator;
 pub mod lights;
+pub mod sampler;
 pub mod sampling;

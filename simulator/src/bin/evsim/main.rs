@@ -16,6 +16,7 @@ use simulator::image_io::write_image;
 use simulator::render::accel::BvhPreset;
 use simulator::render::film::RenderSettings;
 use simulator::render::integrator::Renderer;
+use simulator::render::sampler::SamplerKind;
 use simulator::scene::{self, Camera};
 
 mod bench;
@@ -77,6 +78,9 @@ pub struct RenderArgs {
     /// Camera override: full vertical field of view in degrees.
     #[arg(long)]
     pub fov: Option<f32>,
+    /// Sample generator: stratified Owen-scrambled Sobol, or independent (like Mitsuba's).
+    #[arg(long, value_enum, default_value_t = SamplerKind::default())]
+    pub sampler: SamplerKind,
     /// BVH build preset.
     #[arg(long, value_enum, default_value_t = BvhPreset::default())]
     pub bvh: BvhPreset,
@@ -137,6 +141,7 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         seed: args.seed,
         frame: 0,
         camera,
+        sampler: args.sampler,
     })
 }
 

@@ -1,5 +1,2 @@
-//! Cross-crate and reference checks; see the files beside this one.
-//!
-//! - [`compare`]: relMSE and tile z-scores used by `mitsuba_reference.rs`.
-
-pub mod compare;
+//! Cross-crate and reference checks live in the test files beside this one:
+//! `mitsuba_reference.rs` compares the path tracer with Mitsuba 3 on the scenes in `scenes/`.

@@ -6,11 +6,14 @@
 //! - [`render`]: the BVH, sampling, BSDFs, lights and the path tracer that turn a scene into a
 //!   linear-light image.
 //! - [`image_io`]: writing linear EXR and 8-bit sRGB PNG, atomically.
+//! - [`export`]: writing a scene for Mitsuba 3 (PLY + EXR + `scene.json`).
+//! - [`reference`]: comparison statistics and the Mitsuba 3 driver for reference checks.
 //! - [`error`]: the typed errors every loader returns.
 
 pub mod error;
 pub mod export;
 pub mod image_io;
+pub mod reference;
 pub mod render;
 pub mod scene;
 

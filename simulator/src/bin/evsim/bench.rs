@@ -1,20 +1,26 @@
 //! `evsim bench render`: the render benchmark. Prints
-//! 1. Cornell box 600x400, max depth 5, 64 spp: our median wall time and M samples/s, and in the
-//!    same run Mitsuba 3's (`llvm_ad_rgb`, JIT warm-up excluded) through the reference-check
-//!    driver, with the ratio. Times are medians of `--repeats` runs, alternating the renderers.
+//! 1. Cornell box 600x400, max depth 5, 64 spp: median wall time and M samples/s of our two
+//!    samplers and, in the same run, of Mitsuba 3 (`llvm_ad_rgb`, JIT warm-up excluded) through
+//!    the reference-check driver; each image's relMSE against a 1024-spp Mitsuba ground truth
+//!    (cached); the efficiency `1 / (time * relMSE)` and its ratio to Mitsuba's, i.e. how much
+//!    faster we reach equal error. Times are medians of `--repeats` runs, alternating renderers.
 //! 2. A 1 M-triangle scene: BVH build time and closest-hit M rays/s (primary and diffuse rays)
 //!    for every obvhs build preset.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use simulator::export::export_mitsuba;
+use simulator::image_io::read_exr;
+use simulator::reference::compare::rel_mse;
+use simulator::reference::mitsuba;
 use simulator::render::accel::{Accel, BvhPreset};
+use simulator::render::sampler::SamplerKind;
 use simulator::render::film::RenderSettings;
 use simulator::render::integrator::Renderer;
 use simulator::render::sampling::{cosine_hemisphere, Frame, Rng};
@@ -57,19 +63,13 @@ pub fn run(what: BenchCommand) -> Result<()> {
     }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    v[v.len() / 2]
-}
+/// Samples per pixel of the Mitsuba ground truth the errors are measured against.
+const GT_SPP: u32 = 1024;
 
-/// The Python of the Mitsuba venv, if installed.
-pub fn mitsuba_python() -> Option<PathBuf> {
-    if let Some(p) = std::env::var_os("EVBLUR_MITSUBA_PYTHON") {
-        return Some(PathBuf::from(p));
-    }
-    let home = std::env::var_os("HOME")?;
-    let p = Path::new(&home).join(".cache/evblur/mitsuba-venv/bin/python");
-    p.exists().then_some(p)
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
 }
 
 fn render_bench(b: &RenderBench) -> Result<()> {
@@ -82,60 +82,74 @@ fn render_bench(b: &RenderBench) -> Result<()> {
     let samples = (st.width * st.height * st.spp) as f64;
     let renderer = Renderer::new(&scene);
     renderer.render(&RenderSettings { spp: 1, ..st.clone() }, None); // warm caches
-    let mitsuba = if b.no_mitsuba { None } else { mitsuba_python() };
-    let export_dir = std::env::temp_dir().join(format!("evblur-bench-{}", std::process::id()));
-    if mitsuba.is_some() {
-        simulator::export::mitsuba::export_mitsuba(&scene, &st, &export_dir)?;
+    let python = if b.no_mitsuba { None } else { mitsuba::python() };
+    let dir = std::env::temp_dir().join(format!("evblur-bench-{}", std::process::id()));
+    let gt = match &python {
+        Some(py) => {
+            export_mitsuba(&scene, &st, &dir)?;
+            eprintln!("ground truth: Mitsuba at {GT_SPP} spp (cached after the first run)...");
+            Some(mitsuba::ground_truth(py, &dir, GT_SPP, 1000, "llvm_ad_rgb")?.0)
+        }
+        None => None,
+    };
+    // each contender: its name, the time of every repetition and the error of its last image
+    let samplers = [SamplerKind::Sobol, SamplerKind::Independent];
+    let mut rows: Vec<(String, Vec<f64>, Option<f64>)> =
+        samplers.iter().map(|s| (format!("evblur {s:?}").to_lowercase(), vec![], None)).collect();
+    if python.is_some() {
+        rows.push(("mitsuba".into(), vec![], None));
     }
-    let (mut ours, mut theirs, mut variant) = (vec![], vec![], String::new());
-    for _ in 0..b.repeats {
-        let t = Instant::now();
-        std::hint::black_box(renderer.render(&st, None));
-        ours.push(t.elapsed().as_secs_f64());
-        if let Some(py) = &mitsuba {
-            let (t, v) = mitsuba_time(py, &export_dir, st.spp)?;
-            theirs.push(t);
-            variant = v;
+    for rep in 0..b.repeats {
+        for (k, &sampler) in samplers.iter().enumerate() {
+            let s = RenderSettings { sampler, seed: rep as u64, ..st.clone() };
+            let t = Instant::now();
+            let img = renderer.render(&s, None);
+            rows[k].1.push(t.elapsed().as_secs_f64());
+            rows[k].2 = gt.as_ref().map(|gt| rel_mse(&img, gt));
+        }
+        if let Some(py) = &python {
+            let out = dir.join("mitsuba_bench.exr");
+            let run = mitsuba::run(py, &dir.join("scene.json"), st.spp, 1 + rep as u32, "llvm_ad_rgb", &out)?;
+            rows[2].0 = format!("mitsuba {}", run.variant);
+            rows[2].1.push(run.render_s);
+            rows[2].2 = gt.as_ref().map(|gt| read_exr(&out).map(|img| rel_mse(&img, gt))).transpose()?;
         }
     }
-    let t_ours = median(ours.clone());
-    println!("cornell box {}x{}, max depth {}, {} spp, {} threads", st.width, st.height, st.max_depth, st.spp, rayon::current_num_threads());
-    println!("  evblur : median {:.3} s  {:.2} M samples/s  (runs {:?})", t_ours, samples / t_ours / 1e6, round3(&ours));
-    if !theirs.is_empty() {
-        let t_m = median(theirs.clone());
-        println!("  mitsuba {variant}: median {:.3} s  {:.2} M samples/s  (runs {:?})", t_m, samples / t_m / 1e6, round3(&theirs));
-        println!("  ratio evblur/mitsuba samples/s: {:.2}x", t_m / t_ours);
+    let _ = std::fs::remove_dir_all(&dir);
+    println!(
+        "cornell box {}x{}, max depth {}, {} spp, {} threads, median of {} runs",
+        st.width,
+        st.height,
+        st.max_depth,
+        st.spp,
+        rayon::current_num_threads(),
+        b.repeats
+    );
+    println!("  {:<22} {:>8} {:>12} {:>11} {:>12}", "renderer", "time s", "M samples/s", "relMSE", "efficiency");
+    let effs: Vec<Option<f64>> = rows.iter().map(|(_, t, e)| e.map(|e| 1.0 / (median(t) * e))).collect();
+    let sci = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3e}"));
+    for ((name, times, err), eff) in rows.iter().zip(&effs) {
+        let t = median(times);
+        println!("  {:<22} {:>8.3} {:>12.2} {:>11} {:>12}", name, t, samples / t / 1e6, sci(*err), sci(*eff));
+    }
+    if python.is_some() {
+        let t_m = median(&rows[2].1);
+        println!(
+            "  samples/s vs mitsuba: sobol {:.2}x, independent {:.2}x",
+            t_m / median(&rows[0].1),
+            t_m / median(&rows[1].1)
+        );
+        if let (Some(e0), Some(e1), Some(em)) = (effs[0], effs[1], effs[2]) {
+            println!(
+                "  speed at equal error vs mitsuba (efficiency ratio): sobol {:.2}x, independent {:.2}x",
+                e0 / em,
+                e1 / em
+            );
+        }
     } else {
-        println!("  mitsuba: not measured (no venv; run the test command once, or set EVBLUR_MITSUBA_PYTHON)");
+        println!("  mitsuba: not measured (no venv: run ./tests/run.sh once, or set EVBLUR_MITSUBA_PYTHON)");
     }
-    let _ = std::fs::remove_dir_all(&export_dir);
     bvh_bench(b.triangles)
-}
-
-fn round3(v: &[f64]) -> Vec<f64> {
-    v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
-}
-
-/// Time one Mitsuba render of the exported scene (JIT warm-up excluded by the driver); returns
-/// the seconds and the variant that ran.
-fn mitsuba_time(py: &Path, dir: &Path, spp: u32) -> Result<(f64, String)> {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/mitsuba/render.py");
-    let out = dir.join("bench.exr");
-    let o = Command::new(py)
-        .arg(&script)
-        .arg(dir.join("scene.json"))
-        .args(["--spp", &spp.to_string(), "--seed", "1", "--out"])
-        .arg(&out)
-        .output()
-        .with_context(|| format!("running {}", py.display()))?;
-    if !o.status.success() {
-        bail!("mitsuba driver failed: {}", String::from_utf8_lossy(&o.stderr));
-    }
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let line = stdout.lines().rev().find(|l| l.contains("render_s")).context("driver printed no timing")?;
-    let v: serde_json::Value = serde_json::from_str(line)?;
-    let variant = v["variant"].as_str().unwrap_or("?").to_string();
-    Ok((v["render_s"].as_f64().context("render_s missing")?, variant))
 }
 
 /// A closed, bumpy sphere of about `n` triangles (lat-long grid, radius modulated).

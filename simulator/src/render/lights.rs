@@ -280,3 +280,111 @@ fn punctual_incident(light: &PunctualLight, p: Vec3) -> Option<(Vec3, f32, Vec3)
         PunctualLight::Directional { direction, irradiance } => Some((-direction, f32::INFINITY, irradiance)),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::accel::{Accel, BvhPreset};
+    use crate::render::chi2::{chi2_test, Chi2Config};
+    use crate::scene::{Material, TriangleMesh};
+
+    /// Three emissive triangles of different power and sidedness around the origin, plus a
+    /// constant environment when `env`.
+    fn scene(env: bool) -> Scene {
+        let mut mesh = TriangleMesh::default();
+        let tris = [
+            ([Vec3::new(-1.0, 2.0, -1.0), Vec3::new(1.0, 2.0, -1.0), Vec3::new(0.0, 2.0, 1.0)], 0u32), // ceiling, faces up
+            ([Vec3::new(2.0, -1.0, 0.5), Vec3::new(2.0, 1.0, 0.5), Vec3::new(2.0, 0.0, -1.5)], 1),    // +x wall, two-sided
+            ([Vec3::new(-0.5, -3.0, 0.0), Vec3::new(0.0, -3.0, 0.5), Vec3::new(0.5, -3.0, 0.0)], 2),  // small, below
+        ];
+        for (i, (c, m)) in tris.iter().enumerate() {
+            for p in c {
+                mesh.positions.push(*p);
+                mesh.normals.push(Vec3::Y);
+                mesh.uvs.push(Vec2::ZERO);
+            }
+            let b = 3 * i as u32;
+            mesh.indices.push([b, b + 1, b + 2]);
+            mesh.material.push(*m);
+        }
+        let emitter = |e: f32, two: bool| Material {
+            emission: Vec3::splat(e),
+            double_sided: two,
+            specular: 0.0,
+            ..Material::default()
+        };
+        Scene {
+            mesh,
+            materials: vec![emitter(3.0, true), emitter(1.0, true), emitter(20.0, true)],
+            environment: if env { Environment::Constant(Vec3::splat(0.5)) } else { Environment::default() },
+            ..Scene::default()
+        }
+    }
+
+    /// The density of `Lights::sample` for direction `d` from `p`: every emissive triangle the
+    /// line crosses (sampling ignores occlusion) plus the environment.
+    fn pdf_brute(lights: &Lights, scene: &Scene, accel: &Accel, p: Vec3, d: Vec3) -> f32 {
+        let mut pdf = lights.pdf_environment(&scene.environment, d);
+        let mut tmin = 0.0;
+        while let Some(h) = accel.intersect(p, d, tmin, f32::INFINITY) {
+            let [a, b, c] = scene.mesh.corners(h.prim as usize);
+            let q = p + d * h.t;
+            pdf += lights.pdf_triangle(h.prim, p, q, (b - a).cross(c - a).normalize());
+            tmin = h.t * (1.0 + 1e-5) + 1e-6;
+        }
+        pdf
+    }
+
+    #[test]
+    fn light_sampling_matches_its_pdf() {
+        for env in [false, true] {
+            let scene = scene(env);
+            let lights = Lights::new(&scene);
+            let accel = Accel::build(&scene.mesh, BvhPreset::Medium);
+            let p = Vec3::new(0.1, 0.2, 0.0);
+            let r = chi2_test(
+                Chi2Config { alpha: 1e-3 / 2.0, substeps: 32, ..Chi2Config::default() },
+                |u_sel, u| lights.sample(&scene, p, u_sel, u).map(|s| s.wi),
+                |d| pdf_brute(&lights, &scene, &accel, p, d),
+            );
+            assert!(r.passed, "env {env}: {r:?}");
+            assert!((r.pdf_integral - r.accepted).abs() < 5e-3, "env {env}: {r:?}");
+        }
+    }
+
+    #[test]
+    fn selection_follows_power_and_gives_infinite_lights_an_equal_share() {
+        let scene = scene(true);
+        let lights = Lights::new(&scene);
+        // two-sided triangles: Phi = 2 pi A lum(Le); the environment takes half
+        let area = |i: usize| {
+            let [a, b, c] = scene.mesh.corners(i);
+            0.5 * (b - a).cross(c - a).length()
+        };
+        let power: Vec<f32> = (0..3).map(|i| 2.0 * std::f32::consts::PI * area(i) * luminance(scene.materials[i].emission)).collect();
+        let total: f32 = power.iter().sum();
+        for i in 0..3 {
+            let want = 0.5 * power[i] / total;
+            assert!((lights.distribution.pmf(i) - want).abs() < 1e-6, "light {i}");
+        }
+        assert!((lights.distribution.pmf(3) - 0.5).abs() < 1e-6, "environment share");
+    }
+
+    #[test]
+    fn one_sided_emitters_are_dark_from_behind_in_sampling() {
+        let mut scene = scene(false);
+        scene.materials[0].double_sided = false;
+        let [a, b, c] = scene.mesh.corners(0);
+        let n = (b - a).cross(c - a).normalize();
+        let lights = Lights::new(&scene);
+        // from the side the normal points away from, the ceiling's samples carry no radiance
+        let behind = Vec3::new(0.0, 2.0, 0.0) - n * 1.5;
+        let mut r = crate::render::sampling::Rng::new(3, 4);
+        for _ in 0..2000 {
+            let u_sel = lights.distribution.cdf[0] + r.next_f32() * lights.distribution.pmf(0) * 0.999;
+            if let Some(s) = lights.sample(&scene, behind, u_sel, r.next_2d()) {
+                panic!("a one-sided emitter was sampled from behind: {s:?}");
+            }
+        }
+    }
+}

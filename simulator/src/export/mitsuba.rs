@@ -37,10 +37,10 @@
 //!   rows (the poles and our row boundaries) are the mean of their neighbours: Mitsuba's
 //!   piecewise-linear lookup through those knots is then exactly ours.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use glam::{Mat3, Vec3, Vec4};
+use serde_json::{json, Map, Value};
 
 use super::ExportError;
 use crate::render::film::RenderSettings;
@@ -50,11 +50,10 @@ use crate::scene::{Environment, Material, PunctualLight, Scene, TextureRef, Wrap
 /// of the written `scene.json`. See the module documentation for the file layout and mapping.
 pub fn export_mitsuba(scene: &Scene, settings: &RenderSettings, out_dir: &Path) -> Result<PathBuf, ExportError> {
     std::fs::create_dir_all(out_dir).map_err(|e| ExportError::write(out_dir, e))?;
-    let mut dict: Vec<(String, Json)> = vec![
-        ("type".into(), Json::str("scene")),
-        ("integrator".into(), integrator(settings)),
-        ("sensor".into(), sensor(settings)),
-    ];
+    let mut dict = Map::new();
+    dict.insert("type".into(), json!("scene"));
+    dict.insert("integrator".into(), integrator(settings));
+    dict.insert("sensor".into(), sensor(settings));
 
     // one shape per material (plus a flipped copy for double-sided emitters)
     let diagonal = bbox_diagonal(&scene.mesh.positions);
@@ -75,116 +74,106 @@ pub fn export_mitsuba(scene: &Scene, settings: &RenderSettings, out_dir: &Path) 
         let emitter = emitter(scene, material, m, &element, out_dir)?;
         let file = format!("mesh_{m}.ply");
         write_ply(&out_dir.join(&file), scene, &tris, false, 0.0)?;
-        dict.push((format!("shape_{m}"), shape(&file, &bsdf, emitter.as_ref())));
+        dict.insert(format!("shape_{m}"), shape(&file, &bsdf, emitter.as_ref()));
         if let (Some(emitter), true) = (&emitter, material.double_sided) {
             let file = format!("mesh_{m}_back.ply");
             write_ply(&out_dir.join(&file), scene, &tris, true, 1e-5 * diagonal)?;
-            dict.push((format!("shape_{m}_back"), shape(&file, &bsdf, Some(emitter))));
+            dict.insert(format!("shape_{m}_back"), shape(&file, &bsdf, Some(emitter)));
         }
     }
 
     for (i, light) in scene.lights.iter().enumerate() {
-        dict.push((format!("light_{i}"), punctual(light)));
+        dict.insert(format!("light_{i}"), punctual(light));
     }
     if let Some(env) = environment(&scene.environment, out_dir)? {
-        dict.push(("environment".into(), env));
+        dict.insert("environment".into(), env);
     }
 
-    let root = Json::Obj(vec![("format".into(), Json::str("evblur-mitsuba-1")), ("scene".into(), Json::Obj(dict))]);
+    let root = json!({ "format": "evblur-mitsuba-1", "scene": Value::Object(dict) });
     let path = out_dir.join("scene.json");
-    let mut text = String::new();
-    root.write(&mut text, 0);
-    text.push('\n');
-    std::fs::write(&path, text).map_err(|e| ExportError::write(&path, e))?;
+    std::fs::write(&path, to_text(&root)).map_err(|e| ExportError::write(&path, e))?;
     Ok(path)
 }
 
+/// Pretty-printed JSON with a final newline. Non-finite numbers became `null` when the `Value`
+/// was built, which Mitsuba rejects loudly.
+fn to_text(v: &Value) -> String {
+    // serializing a `Value` (string keys only) cannot fail
+    let mut text = serde_json::to_string_pretty(v).expect("a serde_json::Value always serializes");
+    text.push('\n');
+    text
+}
+
 /// `path` integrator with our depth convention (which is Mitsuba's).
-fn integrator(settings: &RenderSettings) -> Json {
+fn integrator(settings: &RenderSettings) -> Value {
     let max_depth = if settings.max_depth > i32::MAX as u32 { -1 } else { settings.max_depth as i64 };
-    Json::Obj(vec![
-        ("type".into(), Json::str("path")),
-        ("max_depth".into(), Json::Int(max_depth)),
-        ("rr_depth".into(), Json::Int(settings.rr_depth.min(i32::MAX as u32) as i64)),
-        ("hide_emitters".into(), Json::Bool(false)),
-    ])
+    json!({
+        "type": "path",
+        "max_depth": max_depth,
+        "rr_depth": settings.rr_depth.min(i32::MAX as u32) as i64,
+        "hide_emitters": false,
+    })
 }
 
 /// `perspective` sensor: our -Z-looking camera expressed as a Mitsuba `look_at`.
-fn sensor(settings: &RenderSettings) -> Json {
+fn sensor(settings: &RenderSettings) -> Value {
     let cam = &settings.camera;
     let origin = cam.origin();
     let forward = -cam.to_world.z_axis.truncate().normalize();
     let up = cam.to_world.y_axis.truncate().normalize();
     // fold the frame into the seed as the renderer does (Mitsuba seeds are 32-bit)
     let seed = (settings.seed ^ settings.frame.wrapping_mul(0x9E37_79B9_7F4A_7C15)) as u32;
-    Json::Obj(vec![
-        ("type".into(), Json::str("perspective")),
-        ("fov".into(), Json::Num(cam.yfov.to_degrees() as f64)),
-        ("fov_axis".into(), Json::str("y")),
-        ("near_clip".into(), Json::Num(1e-4)),
-        ("far_clip".into(), Json::Num(1e7)),
-        (
-            "to_world".into(),
-            Json::Obj(vec![(
-                "look_at".into(),
-                Json::Obj(vec![
-                    ("origin".into(), vec3(origin)),
-                    ("target".into(), vec3(origin + forward)),
-                    ("up".into(), vec3(up)),
-                ]),
-            )]),
-        ),
-        (
-            "film".into(),
-            Json::Obj(vec![
-                ("type".into(), Json::str("hdrfilm")),
-                ("width".into(), Json::Int(settings.width as i64)),
-                ("height".into(), Json::Int(settings.height as i64)),
-                ("pixel_format".into(), Json::str("rgb")),
-                ("component_format".into(), Json::str("float32")),
-                ("rfilter".into(), Json::Obj(vec![("type".into(), Json::str("box"))])),
-            ]),
-        ),
-        (
-            "sampler".into(),
-            Json::Obj(vec![
-                ("type".into(), Json::str("independent")),
-                ("sample_count".into(), Json::Int(settings.spp as i64)),
-                ("seed".into(), Json::Int(seed as i64)),
-            ]),
-        ),
-    ])
+    json!({
+        "type": "perspective",
+        "fov": cam.yfov.to_degrees() as f64,
+        "fov_axis": "y",
+        "near_clip": 1e-4,
+        "far_clip": 1e7,
+        "to_world": look_at(origin, origin + forward, up),
+        "film": {
+            "type": "hdrfilm",
+            "width": settings.width as i64,
+            "height": settings.height as i64,
+            "pixel_format": "rgb",
+            "component_format": "float32",
+            "rfilter": { "type": "box" },
+        },
+        "sampler": {
+            "type": "independent",
+            "sample_count": settings.spp as i64,
+            "seed": seed as i64,
+        },
+    })
 }
 
 /// The two-sided BSDF of `material` (see the module docs for the mapping).
-fn bsdf(scene: &Scene, material: &Material, m: usize, element: &str, out_dir: &Path) -> Result<Json, ExportError> {
+fn bsdf(scene: &Scene, material: &Material, m: usize, element: &str, out_dir: &Path) -> Result<Value, ExportError> {
     if material.metallic_roughness_texture.is_some() {
         return Err(ExportError::not_exportable(
             element,
             "metallic-roughness textures have no Mitsuba equivalent here; use constant factors",
         ));
     }
-    let reflectance = || -> Result<Json, ExportError> {
+    let reflectance = || -> Result<Value, ExportError> {
         match material.base_color_texture {
             Some(t) => bitmap(scene, t, material.base_color, &format!("tex_{m}_base.exr"), element, out_dir),
             None => Ok(rgb(material.base_color)),
         }
     };
     let inner = if material.metallic == 0.0 && material.specular == 0.0 {
-        Json::Obj(vec![("type".into(), Json::str("diffuse")), ("reflectance".into(), reflectance()?)])
+        json!({ "type": "diffuse", "reflectance": reflectance()? })
     } else if material.metallic == 1.0 {
         let alpha = material.roughness * material.roughness;
-        let mut d = vec![
-            ("type".into(), Json::str(if alpha < 1e-4 { "conductor" } else { "roughconductor" })),
-            ("material".into(), Json::str("none")),
-            ("specular_reflectance".into(), reflectance()?),
-        ];
+        let mut d = json!({
+            "type": if alpha < 1e-4 { "conductor" } else { "roughconductor" },
+            "material": "none",
+            "specular_reflectance": reflectance()?,
+        });
         if alpha >= 1e-4 {
-            d.push(("distribution".into(), Json::str("ggx")));
-            d.push(("alpha".into(), Json::Num(alpha as f64)));
+            d["distribution"] = json!("ggx");
+            d["alpha"] = json!(alpha as f64);
         }
-        Json::Obj(d)
+        d
     } else {
         return Err(ExportError::not_exportable(
             element,
@@ -195,11 +184,11 @@ fn bsdf(scene: &Scene, material: &Material, m: usize, element: &str, out_dir: &P
             ),
         ));
     };
-    Ok(Json::Obj(vec![("type".into(), Json::str("twosided")), ("bsdf".into(), inner)]))
+    Ok(json!({ "type": "twosided", "bsdf": inner }))
 }
 
 /// The `area` emitter of `material`, if it emits.
-fn emitter(scene: &Scene, material: &Material, m: usize, element: &str, out_dir: &Path) -> Result<Option<Json>, ExportError> {
+fn emitter(scene: &Scene, material: &Material, m: usize, element: &str, out_dir: &Path) -> Result<Option<Value>, ExportError> {
     if !material.is_emissive() {
         return Ok(None);
     }
@@ -207,25 +196,25 @@ fn emitter(scene: &Scene, material: &Material, m: usize, element: &str, out_dir:
         Some(t) => bitmap(scene, t, material.emission, &format!("tex_{m}_emission.exr"), element, out_dir)?,
         None => rgb(material.emission),
     };
-    Ok(Some(Json::Obj(vec![("type".into(), Json::str("area")), ("radiance".into(), radiance)])))
+    Ok(Some(json!({ "type": "area", "radiance": radiance })))
 }
 
 /// A `ply` shape dict.
-fn shape(file: &str, bsdf: &Json, emitter: Option<&Json>) -> Json {
-    let mut d = vec![
-        ("type".into(), Json::str("ply")),
-        ("filename".into(), Json::str(file)),
-        ("face_normals".into(), Json::Bool(false)),
-        ("bsdf".into(), bsdf.clone()),
-    ];
+fn shape(file: &str, bsdf: &Value, emitter: Option<&Value>) -> Value {
+    let mut d = json!({
+        "type": "ply",
+        "filename": file,
+        "face_normals": false,
+        "bsdf": bsdf,
+    });
     if let Some(e) = emitter {
-        d.push(("emitter".into(), e.clone()));
+        d["emitter"] = e.clone();
     }
-    Json::Obj(d)
+    d
 }
 
 /// Write texture `t` times `factor` as a linear float EXR and return its `bitmap` dict.
-fn bitmap(scene: &Scene, t: TextureRef, factor: Vec3, file: &str, element: &str, out_dir: &Path) -> Result<Json, ExportError> {
+fn bitmap(scene: &Scene, t: TextureRef, factor: Vec3, file: &str, element: &str, out_dir: &Path) -> Result<Value, ExportError> {
     let tex = scene.textures.get(t.index as usize).ok_or_else(|| {
         ExportError::not_exportable(element, format!("texture index {} out of range", t.index))
     })?;
@@ -242,60 +231,48 @@ fn bitmap(scene: &Scene, t: TextureRef, factor: Vec3, file: &str, element: &str,
     };
     let texels: Vec<Vec3> = tex.texels.iter().map(|&p: &Vec4| p.truncate() * factor).collect();
     write_exr(&out_dir.join(file), tex.width as usize, tex.height as usize, &texels)?;
-    Ok(Json::Obj(vec![
-        ("type".into(), Json::str("bitmap")),
-        ("filename".into(), Json::str(file)),
-        ("raw".into(), Json::Bool(true)),
-        ("filter_type".into(), Json::str("bilinear")),
-        ("wrap_mode".into(), Json::str(wrap)),
-    ]))
+    Ok(json!({
+        "type": "bitmap",
+        "filename": file,
+        "raw": true,
+        "filter_type": "bilinear",
+        "wrap_mode": wrap,
+    }))
 }
 
 /// A punctual light as a Mitsuba emitter dict.
-fn punctual(light: &PunctualLight) -> Json {
+fn punctual(light: &PunctualLight) -> Value {
     match light {
-        PunctualLight::Point { position, intensity } => Json::Obj(vec![
-            ("type".into(), Json::str("point")),
-            ("position".into(), vec3(*position)),
-            ("intensity".into(), rgb(*intensity)),
-        ]),
+        PunctualLight::Point { position, intensity } => json!({
+            "type": "point",
+            "position": vec3(*position),
+            "intensity": rgb(*intensity),
+        }),
         PunctualLight::Spot { position, direction, intensity, inner_cone, outer_cone } => {
             // any up vector not parallel to the axis will do: the cone is symmetric
             let up = if direction.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
-            Json::Obj(vec![
-                ("type".into(), Json::str("spot")),
-                (
-                    "to_world".into(),
-                    Json::Obj(vec![(
-                        "look_at".into(),
-                        Json::Obj(vec![
-                            ("origin".into(), vec3(*position)),
-                            ("target".into(), vec3(*position + *direction)),
-                            ("up".into(), vec3(up)),
-                        ]),
-                    )]),
-                ),
-                ("intensity".into(), rgb(*intensity)),
-                ("cutoff_angle".into(), Json::Num(outer_cone.to_degrees() as f64)),
-                ("beam_width".into(), Json::Num(inner_cone.to_degrees() as f64)),
-            ])
+            json!({
+                "type": "spot",
+                "to_world": look_at(*position, *position + *direction, up),
+                "intensity": rgb(*intensity),
+                "cutoff_angle": outer_cone.to_degrees() as f64,
+                "beam_width": inner_cone.to_degrees() as f64,
+            })
         }
-        PunctualLight::Directional { direction, irradiance } => Json::Obj(vec![
-            ("type".into(), Json::str("directional")),
-            ("direction".into(), vec3(*direction)),
-            ("irradiance".into(), rgb(*irradiance)),
-        ]),
+        PunctualLight::Directional { direction, irradiance } => json!({
+            "type": "directional",
+            "direction": vec3(*direction),
+            "irradiance": rgb(*irradiance),
+        }),
     }
 }
 
 /// The environment emitter, or `None` for a black environment.
-fn environment(env: &Environment, out_dir: &Path) -> Result<Option<Json>, ExportError> {
+fn environment(env: &Environment, out_dir: &Path) -> Result<Option<Value>, ExportError> {
     #[allow(unreachable_patterns)]
     match env {
         Environment::Constant(c) if c.max_element() <= 0.0 => Ok(None),
-        Environment::Constant(c) => {
-            Ok(Some(Json::Obj(vec![("type".into(), Json::str("constant")), ("radiance".into(), rgb(*c))])))
-        }
+        Environment::Constant(c) => Ok(Some(json!({ "type": "constant", "radiance": rgb(*c) }))),
         Environment::Map(map) => {
             envmap_emitter(map.width, map.height, &map.texels, map.scale, map.to_world, out_dir).map(Some)
         }
@@ -311,7 +288,7 @@ pub(crate) fn envmap_emitter(
     scale: f32,
     to_world: Mat3,
     out_dir: &Path,
-) -> Result<Json, ExportError> {
+) -> Result<Value, ExportError> {
     if texels.len() != (width * height) as usize || width < 2 || height < 3 {
         return Err(ExportError::not_exportable(
             "environment map",
@@ -329,13 +306,13 @@ pub(crate) fn envmap_emitter(
     }
     write_exr(&out_dir.join("envmap.exr"), w, 2 * h + 1, &rows)?;
     let m = glam::Mat4::from_mat3(to_world);
-    let rows: Vec<Json> = (0..4).map(|r| Json::Arr(m.row(r).to_array().iter().map(|&v| Json::Num(v as f64)).collect())).collect();
-    Ok(Json::Obj(vec![
-        ("type".into(), Json::str("envmap")),
-        ("filename".into(), Json::str("envmap.exr")),
-        ("scale".into(), Json::Num(scale as f64)),
-        ("to_world".into(), Json::Obj(vec![("matrix".into(), Json::Arr(rows))])),
-    ]))
+    let rows: Vec<Vec<f64>> = (0..4).map(|r| m.row(r).to_array().iter().map(|&v| v as f64).collect()).collect();
+    Ok(json!({
+        "type": "envmap",
+        "filename": "envmap.exr",
+        "scale": scale as f64,
+        "to_world": { "matrix": rows },
+    }))
 }
 
 /// Write the triangles `tris` of the scene mesh as a binary little-endian PLY with positions,
@@ -403,81 +380,17 @@ fn bbox_diagonal(points: &[Vec3]) -> f32 {
     (hi - lo).length().max(1e-6)
 }
 
-fn vec3(v: Vec3) -> Json {
-    Json::Arr(vec![Json::Num(v.x as f64), Json::Num(v.y as f64), Json::Num(v.z as f64)])
+fn vec3(v: Vec3) -> Value {
+    json!([v.x as f64, v.y as f64, v.z as f64])
 }
 
-fn rgb(c: Vec3) -> Json {
-    Json::Obj(vec![("type".into(), Json::str("rgb")), ("value".into(), vec3(c))])
+fn rgb(c: Vec3) -> Value {
+    json!({ "type": "rgb", "value": vec3(c) })
 }
 
-/// The little JSON tree `scene.json` is written from (the simulator has no JSON dependency).
-#[derive(Clone, Debug)]
-pub(crate) enum Json {
-    Bool(bool),
-    Int(i64),
-    /// Non-finite numbers are written as `null`, which Mitsuba rejects loudly.
-    Num(f64),
-    Str(String),
-    Arr(Vec<Json>),
-    /// Keys in insertion order.
-    Obj(Vec<(String, Json)>),
-}
-
-impl Json {
-    fn str(s: &str) -> Json {
-        Json::Str(s.to_string())
-    }
-
-    /// Append the pretty-printed value to `out` at nesting level `indent`.
-    fn write(&self, out: &mut String, indent: usize) {
-        match self {
-            Json::Bool(b) => out.push_str(if *b { "true" } else { "false" }),
-            Json::Int(i) => write!(out, "{i}").unwrap(),
-            Json::Num(x) if x.is_finite() => {
-                // `{:?}` keeps a decimal point or exponent, so Python reads a float
-                write!(out, "{x:?}").unwrap()
-            }
-            Json::Num(_) => out.push_str("null"),
-            Json::Str(s) => write_string(out, s),
-            Json::Arr(items) => {
-                out.push('[');
-                for (k, item) in items.iter().enumerate() {
-                    if k > 0 {
-                        out.push_str(", ");
-                    }
-                    item.write(out, indent);
-                }
-                out.push(']');
-            }
-            Json::Obj(fields) => {
-                out.push_str("{\n");
-                for (k, (key, value)) in fields.iter().enumerate() {
-                    out.push_str(&"  ".repeat(indent + 1));
-                    write_string(out, key);
-                    out.push_str(": ");
-                    value.write(out, indent + 1);
-                    out.push_str(if k + 1 < fields.len() { ",\n" } else { "\n" });
-                }
-                out.push_str(&"  ".repeat(indent));
-                out.push('}');
-            }
-        }
-    }
-}
-
-/// A JSON string literal with the required escapes.
-fn write_string(out: &mut String, s: &str) {
-    out.push('"');
-    for c in s.chars() {
-        match c {
-            '"' => out.push_str("\\\""),
-            '\\' => out.push_str("\\\\"),
-            c if (c as u32) < 0x20 => write!(out, "\\u{:04x}", c as u32).unwrap(),
-            c => out.push(c),
-        }
-    }
-    out.push('"');
+/// The `{"look_at": ...}` encoding of a `ScalarTransform4f` (resolved by `tests/mitsuba/render.py`).
+fn look_at(origin: Vec3, target: Vec3, up: Vec3) -> Value {
+    json!({ "look_at": { "origin": vec3(origin), "target": vec3(target), "up": vec3(up) } })
 }
 
 #[cfg(test)]
@@ -536,13 +449,22 @@ mod tests {
         let (scene, settings) = cornell();
         let dir = std::env::temp_dir().join(format!("evblur-export-test-{}", std::process::id()));
         let json = export_mitsuba(&scene, &settings, &dir).unwrap();
-        let text = std::fs::read_to_string(&json).unwrap();
-        assert!(text.contains("\"type\": \"diffuse\""));
-        assert!(text.contains("\"type\": \"area\""));
-        assert!(text.contains("\"max_depth\": 5"));
-        assert!(text.contains("\"fov_axis\": \"y\""));
+        let doc: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(doc["format"], "evblur-mitsuba-1");
+        let s = &doc["scene"];
+        assert_eq!(s["type"], "scene");
+        assert_eq!(s["shape_0"]["bsdf"]["bsdf"]["type"], "diffuse");
+        assert_eq!(s["shape_3"]["emitter"]["type"], "area");
+        assert_eq!(s["shape_3"]["filename"], "mesh_3.ply");
+        // integers stay integers, other numbers are floats (Mitsuba's properties are typed)
+        assert_eq!(s["integrator"]["max_depth"].as_i64(), Some(5));
+        assert_eq!(s["sensor"]["fov_axis"], "y");
+        assert!(s["sensor"]["fov"].is_f64());
         // forward is -Z of the camera: the target lies towards the box
-        assert!(text.contains("\"target\": [0.0, 0.0, 2.9"));
+        let target: Vec<f64> =
+            s["sensor"]["to_world"]["look_at"]["target"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        assert_eq!(&target[..2], &[0.0, 0.0]);
+        assert!((target[2] - 2.9).abs() < 1e-5, "{target:?}");
         let ply = std::fs::read(dir.join("mesh_1.ply")).unwrap();
         let header_end = ply.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
         assert_eq!(ply.len(), header_end + 4 * 32 + 2 * 13);
@@ -562,12 +484,12 @@ mod tests {
     fn unlimited_depth_is_minus_one_and_json_escapes() {
         let (_, mut settings) = cornell();
         settings.max_depth = u32::MAX;
-        let mut s = String::new();
-        integrator(&settings).write(&mut s, 0);
-        assert!(s.contains("\"max_depth\": -1"));
-        let mut s = String::new();
-        Json::str("a\"b\\c\n").write(&mut s, 0);
-        assert_eq!(s, r#""a\"b\\c\u000a""#);
+        let parsed: Value = serde_json::from_str(&to_text(&integrator(&settings))).unwrap();
+        assert_eq!(parsed["max_depth"].as_i64(), Some(-1));
+        // strings survive the round trip through the written text
+        let tricky = "a\"b\\c\n";
+        let parsed: Value = serde_json::from_str(&to_text(&json!({ "k": tricky }))).unwrap();
+        assert_eq!(parsed["k"], tricky);
     }
 
     #[test]
@@ -576,9 +498,13 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let texels = vec![Vec3::ONE; 8 * 4];
         let j = envmap_emitter(8, 4, &texels, 2.0, Mat3::IDENTITY, &dir).unwrap();
-        let mut s = String::new();
-        j.write(&mut s, 0);
-        assert!(s.contains("\"envmap\"") && s.contains("\"matrix\"") && s.contains("\"scale\": 2.0"));
+        let j: Value = serde_json::from_str(&to_text(&j)).unwrap();
+        assert_eq!(j["type"], "envmap");
+        assert_eq!(j["filename"], "envmap.exr");
+        assert_eq!(j["scale"].as_f64(), Some(2.0));
+        let matrix = j["to_world"]["matrix"].as_array().unwrap();
+        assert_eq!(matrix.len(), 4);
+        assert_eq!(matrix[1], json!([0.0, 1.0, 0.0, 0.0]));
         assert!(dir.join("envmap.exr").exists());
         std::fs::remove_dir_all(&dir).ok();
     }

@@ -16,10 +16,12 @@
 //! - **Materials** (see `gltf_material`): `pbrMetallicRoughness` base colour factor (linear, alpha
 //!   dropped) and texture (sRGB, decoded to linear), metallic and roughness factors and the
 //!   metallic-roughness texture (linear; G = roughness, B = metallic), `emissiveFactor` and
-//!   `emissiveTexture` (sRGB) times `KHR_materials_emissive_strength`, `doubleSided`. `specular`
-//!   is 1 (the `KHR_materials_specular` extension is not read). Primitives without a material get
-//!   [`Material::default`](super::Material). Images come from a relative URI, a data URI or a
-//!   bufferView, PNG or JPEG; sampler wrap modes map to [`WrapMode`](super::WrapMode).
+//!   `emissiveTexture` (sRGB) times `KHR_materials_emissive_strength`, `doubleSided`, and the
+//!   `KHR_materials_specular` strength `specularFactor` (in [0, 1], default 1) as `specular`; its
+//!   `specularColorFactor` and textures are ignored with a warning (our dielectric F0 is white,
+//!   `0.04 specular`). Primitives without a material get [`Material::default`](super::Material).
+//!   Images come from a relative URI, a data URI or a bufferView, PNG or JPEG; sampler wrap modes
+//!   map to [`WrapMode`](super::WrapMode).
 //! - **Lights** (`KHR_lights_punctual`): point, spot and directional, placed by their node's world
 //!   transform; lights point down their local -Z. `color * intensity` is read as radiometric
 //!   (W/sr for point and spot, W/m^2 for directional; no 683 lm/W conversion, see
@@ -37,11 +39,11 @@
 //! # Errors
 //! Every error names the file, the element (e.g. `mesh 2 "Chair" primitive 0 attribute
 //! POSITION`) and the fix: malformed JSON or GLB, an `extensionsRequired` entry other than
-//! `KHR_lights_punctual` and `KHR_materials_emissive_strength` (notably `KHR_texture_transform`
-//! and mesh compression), a missing or short buffer, a missing or undecodable image, points and
-//! lines primitives, non-finite positions, normals or UVs, indices out of range, a texture that
-//! uses a texCoord set other than 0, and a scene without triangles. Degenerate (zero-area)
-//! triangles are skipped with one warning per primitive instance.
+//! `KHR_lights_punctual`, `KHR_materials_emissive_strength` and `KHR_materials_specular` (notably
+//! `KHR_texture_transform` and mesh compression), a missing or short buffer, a missing or
+//! undecodable image, points and lines primitives, non-finite positions, normals or UVs, indices
+//! out of range, a texture that uses a texCoord set other than 0, and a scene without triangles.
+//! Degenerate (zero-area) triangles are skipped with one warning per primitive instance.
 //!
 //! Units: glTF is metres, right-handed, +Y up; we keep its coordinates as they are.
 
@@ -56,7 +58,8 @@ use super::{Camera, PunctualLight, Scene};
 use crate::error::SceneError;
 
 /// Extensions whose content we read; any other required extension is an error.
-const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_lights_punctual", "KHR_materials_emissive_strength"];
+const SUPPORTED_EXTENSIONS: &[&str] =
+    &["KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_materials_specular"];
 
 /// Load a `.gltf` or `.glb` file into a flattened world-space [`Scene`].
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -67,12 +70,16 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let mut warnings = Vec::new();
     check_extensions(path, gltf.document.as_json(), &mut warnings)?;
     let blob = gltf.blob;
-    let doc = gltf::Document::from_json(gltf.document.into_json()).map_err(|e| parse_error(path, e))?;
+    let mut json = gltf.document.into_json();
+    // every required extension is one of ours now; the crate's validator would still reject
+    // KHR_materials_specular, which gltf-json 1.4 reads but leaves out of its ENABLED_EXTENSIONS
+    json.extensions_required.clear();
+    let doc = gltf::Document::from_json(json).map_err(|e| parse_error(path, e))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let buffers = load_buffers(path, base, &doc, blob)?;
 
     let mut scene = Scene { warnings, source: path.to_path_buf(), ..Default::default() };
-    scene.materials = gltf_material::load_materials(path, base, &doc, &buffers, &mut scene.textures)?;
+    scene.materials = gltf_material::load_materials(path, base, &doc, &buffers, &mut scene.textures, &mut scene.warnings)?;
     let root = doc.default_scene().or_else(|| doc.scenes().next()).ok_or_else(|| {
         SceneError::invalid(path, "scenes", "the file defines no scene; add a scene that lists the root nodes")
     })?;
@@ -452,6 +459,21 @@ mod tests {
         assert!(matches!(e, SceneError::Unsupported { .. }), "{e}");
         let msg = e.to_string();
         assert!(msg.contains("extensionsRequired \"KHR_texture_transform\"") && msg.contains("UVs"), "{msg}");
+    }
+
+    #[test]
+    fn required_materials_specular_loads() {
+        let mut d = Doc::default();
+        d.triangle(r#","material":0"#);
+        d.node(r#"{"mesh":0}"#);
+        d.extra.push(
+            r#""extensionsUsed":["KHR_materials_specular"],"extensionsRequired":["KHR_materials_specular"],
+            "materials":[{"extensions":{"KHR_materials_specular":{"specularFactor":0.5}}}]"#
+                .into(),
+        );
+        let s = load(&d.write_embedded(&temp_dir("spec"), "required")).unwrap();
+        assert_eq!(s.materials[0].specular, 0.5);
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
     }
 
     #[test]

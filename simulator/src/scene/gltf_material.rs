@@ -4,6 +4,10 @@
 //! Colour textures (base colour, emission) decode from sRGB, data textures (metallic-roughness)
 //! stay linear. An image used both ways decodes twice; decodes are cached by (image, sRGB), and
 //! glTF textures sharing an image but not a sampler get separate copies with their wrap modes.
+//!
+//! `KHR_materials_specular`: only the scalar `specularFactor` is read (our BSDF has one dielectric
+//! specular strength); a non-white `specularColorFactor`, a `specularTexture` or a
+//! `specularColorTexture` is ignored with a warning.
 
 use std::path::Path;
 
@@ -15,25 +19,27 @@ use super::{Material, Texture, TextureRef, WrapMode};
 use crate::error::SceneError;
 
 /// Convert every material of `doc`, in order (so scene material `i` is glTF material `i`),
-/// decoding the textures they use into `textures`.
+/// decoding the textures they use into `textures` and pushing what is ignored to `warnings`.
 pub(super) fn load_materials(
     path: &Path,
     base: &Path,
     doc: &gltf::Document,
     buffers: &[Vec<u8>],
     textures: &mut Vec<Texture>,
+    warnings: &mut Vec<String>,
 ) -> Result<Vec<Material>, SceneError> {
     let mut loader = TextureLoader { path, base, buffers, textures, cache: Vec::new() };
-    doc.materials().map(|m| material(&mut loader, &m)).collect()
+    doc.materials().map(|m| material(&mut loader, &m, warnings)).collect()
 }
 
 /// One glTF material.
-fn material(tex: &mut TextureLoader, m: &gltf::Material) -> Result<Material, SceneError> {
+fn material(tex: &mut TextureLoader, m: &gltf::Material, warnings: &mut Vec<String>) -> Result<Material, SceneError> {
     let el = label("material", m.index().unwrap_or(0), m.name());
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _alpha] = pbr.base_color_factor();
     let (metallic, roughness) = (pbr.metallic_factor(), pbr.roughness_factor());
-    for (name, v) in [("metallicFactor", metallic), ("roughnessFactor", roughness)] {
+    let specular = m.specular().map_or(1.0, |s| specular_strength(tex.path, &el, &s, warnings));
+    for (name, v) in [("metallicFactor", metallic), ("roughnessFactor", roughness), ("specularFactor", specular)] {
         if !(0.0..=1.0).contains(&v) {
             return Err(SceneError::invalid(tex.path, format!("{el} {name}"), format!("{v} must lie in [0, 1]")));
         }
@@ -57,7 +63,7 @@ fn material(tex: &mut TextureLoader, m: &gltf::Material) -> Result<Material, Sce
         base_color,
         base_color_texture: tex.get(pbr.base_color_texture(), true, &el, "baseColorTexture")?,
         metallic,
-        specular: 1.0,
+        specular,
         roughness,
         metallic_roughness_texture: tex.get(
             pbr.metallic_roughness_texture(),
@@ -69,6 +75,29 @@ fn material(tex: &mut TextureLoader, m: &gltf::Material) -> Result<Material, Sce
         emission_texture: tex.get(m.emissive_texture(), true, &el, "emissiveTexture")?,
         double_sided: m.double_sided(),
     })
+}
+
+/// The `KHR_materials_specular` strength `specularFactor`; warns about the parts we ignore (the
+/// F0 colour and both textures), since our model has only the scalar strength.
+fn specular_strength(path: &Path, el: &str, s: &gltf::material::Specular, warnings: &mut Vec<String>) -> f32 {
+    let mut ignored = Vec::new();
+    if s.specular_color_factor() != [1.0; 3] {
+        ignored.push(format!("specularColorFactor {:?}", s.specular_color_factor()));
+    }
+    if s.specular_texture().is_some() {
+        ignored.push("specularTexture".to_string());
+    }
+    if s.specular_color_texture().is_some() {
+        ignored.push("specularColorTexture".to_string());
+    }
+    if !ignored.is_empty() {
+        warnings.push(format!(
+            "{}: {el}: KHR_materials_specular {} ignored (only the scalar specularFactor is read)",
+            path.display(),
+            ignored.join(", "),
+        ));
+    }
+    s.specular_factor()
 }
 
 /// glTF sampler wrap mode to ours.
@@ -254,6 +283,40 @@ mod tests {
         assert_eq!((s.textures[0].wrap_u, s.textures[0].wrap_v), (WrapMode::Repeat, WrapMode::Repeat));
         assert_eq!((s.textures[1].wrap_u, s.textures[1].wrap_v), (WrapMode::Repeat, WrapMode::ClampToEdge));
         assert!((s.textures[0].texels[3].z - srgb_to_linear(30.0 / 255.0)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn specular_factor_is_read_and_colour_is_ignored_with_a_warning() {
+        let mut d = textured_doc();
+        d.extra.push(
+            r#""extensionsUsed":["KHR_materials_specular"],
+            "materials":[
+              {"name":"Satin","extensions":{"KHR_materials_specular":{"specularFactor":0.25}}},
+              {"name":"Tinted","extensions":{"KHR_materials_specular":{"specularColorFactor":[1,0.5,0.5]}}},
+              {"name":"Plain"}]"#
+                .into(),
+        );
+        let s = load(&d.write_embedded(&temp_dir("spec"), "spec")).unwrap();
+        let specular: Vec<f32> = s.materials.iter().map(|m| m.specular).collect();
+        // factor read; default 1 inside the extension and without it
+        assert_eq!(specular, vec![0.25, 1.0, 1.0]);
+        // only the non-white colour factor warns, naming the material and what is ignored
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+        let w = &s.warnings[0];
+        assert!(w.contains("material 1 \"Tinted\"") && w.contains("specularColorFactor [1.0, 0.5, 0.5]"), "{w}");
+        assert!(w.contains("ignored"), "{w}");
+    }
+
+    #[test]
+    fn specular_factor_outside_unit_interval_is_invalid() {
+        let mut d = textured_doc();
+        d.extra.push(
+            r#""materials":[{"name":"Hot","extensions":{"KHR_materials_specular":{"specularFactor":1.5}}}]"#.into(),
+        );
+        let e = load(&d.write_embedded(&temp_dir("spec"), "spec_bad")).unwrap_err();
+        assert!(matches!(e, SceneError::Invalid { .. }), "{e}");
+        let msg = e.to_string();
+        assert!(msg.contains("material 0 \"Hot\" specularFactor") && msg.contains("[0, 1]"), "{msg}");
     }
 
     #[test]

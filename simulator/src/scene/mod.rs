@@ -119,8 +119,8 @@ pub struct Material {
     /// Metalness in [0, 1].
     pub metallic: f32,
     /// Strength of the dielectric specular layer in [0, 1] (`KHR_materials_specular`
-    /// `specularFactor`): 1 for glTF materials, 0 turns a non-metal into a pure Lambertian
-    /// diffuse (OBJ materials without `Ks`).
+    /// `specularFactor`, 1 when the extension is absent): 0 turns a non-metal into a pure
+    /// Lambertian diffuse (OBJ materials without `Ks`).
     pub specular: f32,
     /// Perceptual roughness in [0, 1]; GGX alpha = roughness^2.
     pub roughness: f32,

@@ -19,7 +19,7 @@ use super::accel::{Accel, BvhPreset, Hit};
 use super::bsdf::Bsdf;
 use super::film::{Image, RenderSettings};
 use super::lights::{emitted, Lights};
-use super::sampler::SampleStream;
+use super::sampler::{pixel_key, SampleStream};
 use super::sampling::{power_heuristic, Frame};
 use crate::scene::Scene;
 
@@ -99,9 +99,10 @@ impl<'a> Renderer<'a> {
     pub fn pixel(&self, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
         let pixel_index = y as u64 * s.width as u64 + x as u64;
         let origin = s.camera.origin();
+        let key = pixel_key(s.seed, pixel_index, s.frame);
         let mut sum = Vec3::ZERO;
         for i in 0..s.spp {
-            let mut rng = SampleStream::new(s.sampler, s.seed, pixel_index, s.frame, i);
+            let mut rng = SampleStream::new(s.sampler, key, i);
             let c = rng.next_4d();
             let film = Vec2::new(x as f32 + c[0], y as f32 + c[1]);
             let dir = s.camera.direction(film, s.width, s.height);

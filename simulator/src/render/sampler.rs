@@ -92,10 +92,40 @@ static SOBOL_BYTES: [[[u32; 256]; 4]; 4] = {
 };
 
 /// The `index`-th point of Sobol dimension `dim` (0..4) as 32 fixed-point bits.
-#[inline]
+#[cfg(test)]
 fn sobol(index: u32, dim: usize) -> u32 {
     let t = &SOBOL_BYTES[dim];
     let b = index.to_le_bytes();
+    t[0][b[0] as usize] ^ t[1][b[1] as usize] ^ t[2][b[2] as usize] ^ t[3][b[3] as usize]
+}
+
+/// [`SOBOL_BYTES`] in the bit-reversed domain: `SOBOL_REV_BYTES[d][k][v]` is
+/// `reverse_bits(T[d][3 - k][reverse8(v)])`, so that for any `y`,
+/// `XOR_k SOBOL_REV_BYTES[d][k][byte k of y] = reverse_bits(sobol(reverse_bits(y), d))`. The Owen
+/// scramble works on reversed bits, so this saves two bit reversals per dimension.
+static SOBOL_REV_BYTES: [[[u32; 256]; 4]; 4] = {
+    let mut t = [[[0u32; 256]; 4]; 4];
+    let mut d = 0;
+    while d < 4 {
+        let mut k = 0;
+        while k < 4 {
+            let mut v = 0;
+            while v < 256 {
+                t[d][k][v] = SOBOL_BYTES[d][3 - k][(v as u8).reverse_bits() as usize].reverse_bits();
+                v += 1;
+            }
+            k += 1;
+        }
+        d += 1;
+    }
+    t
+};
+
+/// `reverse_bits(sobol(reverse_bits(y), dim))` by four table lookups.
+#[inline]
+fn sobol_reversed(y: u32, dim: usize) -> u32 {
+    let t = &SOBOL_REV_BYTES[dim];
+    let b = y.to_le_bytes();
     t[0][b[0] as usize] ^ t[1][b[1] as usize] ^ t[2][b[2] as usize] ^ t[3][b[3] as usize]
 }
 
@@ -124,8 +154,9 @@ fn laine_karras(mut x: u32, seed: u32) -> u32 {
     x
 }
 
-/// Nested uniform (Owen) scramble of 32 fixed-point bits.
-#[inline]
+/// Nested uniform (Owen) scramble of 32 fixed-point bits (the definition the reversed-domain
+/// code in [`SampleStream::next_4d`] is tested against).
+#[cfg(test)]
 fn owen_scramble(x: u32, seed: u32) -> u32 {
     laine_karras(x.reverse_bits(), seed).reverse_bits()
 }
@@ -136,13 +167,19 @@ fn to_unit(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
+/// The scrambling key of one pixel of one frame: computed once per pixel, shared by its samples.
+#[inline]
+pub fn pixel_key(seed: u64, pixel: u64, frame: u64) -> u64 {
+    mix64(seed ^ mix64(pixel ^ mix64(frame.wrapping_add(0x632b_e59b_d9b4_e019))))
+}
+
 /// The random numbers of one camera sample.
 #[derive(Clone, Debug)]
 pub struct SampleStream {
     kind: SamplerKind,
-    /// Independent generator (also the fallback for the Sobol kind's unused state).
+    /// Independent generator (unused by the Sobol kind).
     rng: Rng,
-    /// Per-(pixel, frame, seed) key for scrambling.
+    /// The pixel's key (see [`pixel_key`]).
     key: u64,
     /// Sample index within the pixel.
     index: u32,
@@ -151,11 +188,14 @@ pub struct SampleStream {
 }
 
 impl SampleStream {
-    /// The stream of sample `sample` of pixel `pixel` in frame `frame`.
-    pub fn new(kind: SamplerKind, seed: u64, pixel: u64, frame: u64, sample: u32) -> SampleStream {
-        let key = mix64(seed ^ mix64(pixel ^ mix64(frame.wrapping_add(0x632b_e59b_d9b4_e019))));
+    /// The stream of sample `sample` of the pixel whose key is `key` ([`pixel_key`]).
+    #[inline]
+    pub fn new(kind: SamplerKind, key: u64, sample: u32) -> SampleStream {
         let rng = match kind {
-            SamplerKind::Independent => Rng::for_sample(seed, pixel, frame, sample as u64),
+            SamplerKind::Independent => {
+                let k = mix64(key ^ (sample as u64).wrapping_mul(0xd1b5_4a32_d192_ed03));
+                Rng::new(k, k >> 1)
+            }
             SamplerKind::Sobol => Rng::new(0, 0),
         };
         SampleStream { kind, rng, key, index: sample, set: 0 }
@@ -172,13 +212,16 @@ impl SampleStream {
                 [self.rng.next_f32(), self.rng.next_f32(), self.rng.next_f32(), self.rng.next_f32()]
             }
             SamplerKind::Sobol => {
-                let h = mix64(self.key ^ (set as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
-                // shuffle the index per (pixel, set), then scramble each dimension
-                let i = owen_scramble(self.index, h as u32);
+                // per (pixel, set): an index shuffle and four dimension scrambles, from two hashes
+                let h = mix64(self.key ^ (set as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+                let g = mix64(h);
+                let seeds = [h as u32, (h >> 32) as u32, g as u32, (g >> 32) as u32];
+                // all in the bit-reversed domain: y = reverse(shuffled index), and
+                // owen_scramble(sobol(reverse(y)), s) = reverse(laine_karras(sobol_reversed(y), s))
+                let y = laine_karras(self.index.reverse_bits(), seeds[0] ^ seeds[2].rotate_left(16));
                 let mut out = [0.0; 4];
                 for (d, o) in out.iter_mut().enumerate() {
-                    let s = (mix64(h ^ (d as u64 + 1)) >> 32) as u32;
-                    *o = to_unit(owen_scramble(sobol(i, d), s));
+                    *o = to_unit(laine_karras(sobol_reversed(y, d), seeds[d]).reverse_bits());
                 }
                 out
             }
@@ -199,12 +242,19 @@ mod tests {
         // natural (not Gray-code) order the points are 0, v1, v2, v1^v2, v3, v1^v3
         let pts: Vec<f64> = (0..6).map(|i| sobol(i, 2) as f64 / 4294967296.0).collect();
         assert_eq!(pts, vec![0.0, 0.5, 0.75, 0.25, 0.375, 0.875]);
-        // the byte tables agree with the bit-by-bit definition
+        // the byte tables agree with the bit-by-bit definition, and the reversed-domain path
+        // with the plain Owen scramble of the plain Sobol point
         let mut r = crate::render::sampling::Rng::new(5, 6);
         for _ in 0..10_000 {
-            let i = r.next_u32();
+            let (i, seed) = (r.next_u32(), r.next_u32());
             for d in 0..4 {
                 assert_eq!(sobol(i, d), sobol_bitwise(i, d));
+                assert_eq!(sobol_reversed(i, d), sobol(i.reverse_bits(), d).reverse_bits());
+                let shuffled = owen_scramble(i, seed);
+                assert_eq!(
+                    laine_karras(sobol_reversed(laine_karras(i.reverse_bits(), seed), d), seed ^ 1).reverse_bits(),
+                    owen_scramble(sobol(shuffled, d), seed ^ 1)
+                );
             }
         }
     }
@@ -227,7 +277,7 @@ mod tests {
             for set in 0..6 {
                 let pts: Vec<(f32, f32)> = (0..64)
                     .map(|s| {
-                        let mut st = SampleStream::new(SamplerKind::Sobol, 1, pixel, 0, s);
+                        let mut st = SampleStream::new(SamplerKind::Sobol, pixel_key(1, pixel, 0), s);
                         for _ in 0..set {
                             st.next_4d();
                         }
@@ -240,7 +290,7 @@ mod tests {
                 for d in [2, 3] {
                     let mut seen = [false; 64];
                     for s in 0..64 {
-                        let mut st = SampleStream::new(SamplerKind::Sobol, 1, pixel, 0, s);
+                        let mut st = SampleStream::new(SamplerKind::Sobol, pixel_key(1, pixel, 0), s);
                         for _ in 0..set {
                             st.next_4d();
                         }
@@ -253,7 +303,7 @@ mod tests {
         // an independent stream is (almost surely) not a net
         let pts: Vec<(f32, f32)> = (0..64)
             .map(|s| {
-                let p = SampleStream::new(SamplerKind::Independent, 1, 0, 0, s).next_4d();
+                let p = SampleStream::new(SamplerKind::Independent, pixel_key(1, 0, 0), s).next_4d();
                 (p[0], p[1])
             })
             .collect();
@@ -267,10 +317,10 @@ mod tests {
         let (mut sets, mut pixels, mut mean) = (0.0f64, 0.0f64, 0.0f64);
         for i in 0..n {
             let pixel = (i / 64) as u64;
-            let mut a = SampleStream::new(SamplerKind::Sobol, 9, pixel, 0, i % 64);
+            let mut a = SampleStream::new(SamplerKind::Sobol, pixel_key(9, pixel, 0), i % 64);
             let x = a.next_4d();
             let y = a.next_4d();
-            let z = SampleStream::new(SamplerKind::Sobol, 9, pixel + 100_000, 0, i % 64).next_4d();
+            let z = SampleStream::new(SamplerKind::Sobol, pixel_key(9, pixel + 100_000, 0), i % 64).next_4d();
             sets += (x[0] * y[0]) as f64;
             pixels += (x[1] * z[1]) as f64;
             mean += x[2] as f64;

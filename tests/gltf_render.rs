@@ -1,7 +1,7 @@
 //! glTF files rendered end to end: loader + camera + emission + transforms + path tracer give
 //! exact pixel values where the answer is known.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use simulator::render::film::RenderSettings;
@@ -57,7 +57,7 @@ fn write_scene(name: &str, quad_node: &str) -> PathBuf {
     path
 }
 
-fn render_mean(path: &PathBuf) -> Vec3 {
+fn render_mean(path: &Path) -> Vec3 {
     let scene = simulator::scene::load(path).unwrap_or_else(|e| panic!("{e}"));
     let cam = scene.cameras[0].clone();
     let st = RenderSettings { width: 24, height: 16, spp: 4, max_depth: 1, ..RenderSettings::new(cam) };

@@ -29,7 +29,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
-/// Encode an image as 8-bit sRGB PNG bytes (linear values clamped to [0,1], then the sRGB OETF,
+/// Encode an image as 8-bit sRGB PNG bytes (linear values clamped to `[0, 1]`, then the sRGB OETF,
 /// rounded to nearest).
 pub fn encode_png(img: &Image) -> Result<Vec<u8>> {
     let mut buf = image::RgbImage::new(img.width, img.height);
@@ -67,22 +67,24 @@ pub fn write_image(img: &Image, path: &Path) -> Result<()> {
     write_atomic(path, &bytes)
 }
 
-/// Read a linear RGB EXR file (first layer, R, G and B channels) into an [`Image`].
-pub fn read_exr(path: &Path) -> Result<Image> {
+/// Read the first layer of an OpenEXR file (R, G and B channels; alpha ignored) into an
+/// [`Image`], keeping the `exr` crate's error for callers that map it to their own type.
+pub fn read_exr_raw(path: &Path) -> Result<Image, exr::error::Error> {
     use exr::prelude::read_first_rgba_layer_from_file;
     let img = read_first_rgba_layer_from_file(
         path,
-        |res, _| {
-            let (w, h) = (res.width(), res.height());
-            Image::new(w as u32, h as u32)
-        },
+        |res, _| Image::new(res.width() as u32, res.height() as u32),
         |img: &mut Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
             let w = img.width as usize;
             img.pixels[pos.y() * w + pos.x()] = glam::Vec3::new(r, g, b);
         },
-    )
-    .with_context(|| format!("{}: cannot read as an RGB OpenEXR image", path.display()))?;
+    )?;
     Ok(img.layer_data.channel_data.pixels)
+}
+
+/// Read a linear RGB EXR file (first layer, R, G and B channels) into an [`Image`].
+pub fn read_exr(path: &Path) -> Result<Image> {
+    read_exr_raw(path).with_context(|| format!("{}: cannot read as an RGB OpenEXR image", path.display()))
 }
 
 #[cfg(test)]

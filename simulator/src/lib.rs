@@ -7,8 +7,11 @@
 //!   linear-light image.
 //! - [`image_io`]: writing linear EXR and 8-bit sRGB PNG, atomically.
 //! - [`export`]: writing a scene for Mitsuba 3 (PLY + EXR + `scene.json`).
-//! - [`reference`]: comparison statistics and the Mitsuba 3 driver for reference checks.
+//! - [`reference`](mod@reference): comparison statistics and the Mitsuba 3 driver for reference checks.
 //! - [`error`]: the typed errors every loader returns.
+
+#![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` is deliberate: it is also true for NaN
+#![warn(missing_docs)]
 
 pub mod error;
 pub mod export;

@@ -233,7 +233,7 @@ impl Bsdf {
     /// `eval` and mixed `pdf` for a given half vector `h` (the sampled microfacet normal when
     /// called from `sample`, `normalize(wo + wi)` otherwise). Both zero below the surface.
     fn eval_pdf(&self, wo: Vec3, wi: Vec3, h: Vec3) -> (Vec3, f32) {
-        if !(wo.z > 0.0 && wi.z > 0.0) || !h.is_finite() {
+        if wo.z <= 0.0 || wi.z <= 0.0 || wo.z.is_nan() || wi.z.is_nan() || !h.is_finite() {
             return (Vec3::ZERO, 0.0);
         }
         let p_spec = self.p_spec(wo);

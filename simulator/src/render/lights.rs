@@ -363,8 +363,8 @@ mod tests {
         };
         let power: Vec<f32> = (0..3).map(|i| 2.0 * std::f32::consts::PI * area(i) * luminance(scene.materials[i].emission)).collect();
         let total: f32 = power.iter().sum();
-        for i in 0..3 {
-            let want = 0.5 * power[i] / total;
+        for (i, p) in power.iter().enumerate() {
+            let want = 0.5 * p / total;
             assert!((lights.distribution.pmf(i) - want).abs() < 1e-6, "light {i}");
         }
         assert!((lights.distribution.pmf(3) - 0.5).abs() < 1e-6, "environment share");

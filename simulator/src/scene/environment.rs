@@ -43,7 +43,7 @@ pub enum Environment {
     /// The same radiance from every direction.
     Constant(Vec3),
     /// An importance-sampled equirectangular radiance map.
-    Map(EnvMap),
+    Map(Box<EnvMap>),
 }
 
 impl Default for Environment {
@@ -120,9 +120,9 @@ pub fn load_map(path: &Path, scale: f32, to_world: Mat3) -> Result<Environment, 
         }
     };
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    Ok(Environment::Map(EnvMap::new(&name, width, height, texels, scale, to_world).map_err(
-        |(element, message)| SceneError::invalid(path, element, message),
-    )?))
+    let map = EnvMap::new(&name, width, height, texels, scale, to_world)
+        .map_err(|(element, message)| SceneError::invalid(path, element, message))?;
+    Ok(Environment::Map(Box::new(map)))
 }
 
 /// Read the first RGB(A) layer of an OpenEXR file as f32 RGB.
@@ -130,14 +130,7 @@ fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), SceneError> {
     if !path.exists() {
         return Err(SceneError::io(path, std::io::Error::from(std::io::ErrorKind::NotFound)));
     }
-    let image = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |res, _| (res.width(), vec![Vec3::ZERO; res.width() * res.height()]),
-        |(w, px): &mut (usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
-        },
-    )
-    .map_err(|e| match e {
+    let image = crate::image_io::read_exr_raw(path).map_err(|e| match e {
         exr::error::Error::Io(io) => SceneError::io(path, io),
         e => SceneError::invalid(
             path,
@@ -145,9 +138,7 @@ fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>), SceneError> {
             format!("cannot read as an RGB OpenEXR image ({e}); the first layer needs R, G and B channels"),
         ),
     })?;
-    let size = image.layer_data.size;
-    let (_, texels) = image.layer_data.channel_data.pixels;
-    Ok((size.width() as u32, size.height() as u32, texels))
+    Ok((image.width, image.height, image.pixels))
 }
 
 /// Read a Radiance `.hdr` file as f32 RGB.
@@ -510,7 +501,7 @@ mod tests {
         exr::prelude::write_rgb_file(&exr_path, 4, 2, |x, y| (x as f32, y as f32, 0.5f32)).unwrap();
         let Environment::Map(m) = load_map(&exr_path, 3.0, Mat3::IDENTITY).unwrap() else { panic!() };
         assert_eq!((m.width, m.height), (4, 2));
-        assert_eq!(m.texels[1 * 4 + 2], Vec3::new(2.0, 1.0, 0.5));
+        assert_eq!(m.texels[4 + 2], Vec3::new(2.0, 1.0, 0.5));
         assert_eq!(m.scale, 3.0);
 
         let hdr_path = dir.join("sky.hdr");
@@ -518,7 +509,7 @@ mod tests {
         image::DynamicImage::ImageRgb32F(img).save(&hdr_path).unwrap();
         let Environment::Map(m) = load_map(&hdr_path, 1.0, Mat3::IDENTITY).unwrap() else { panic!() };
         assert_eq!((m.width, m.height), (4, 2));
-        assert!((m.texels[1 * 4 + 2] - Vec3::new(2.0, 1.0, 0.5)).length() < 0.02);
+        assert!((m.texels[4 + 2] - Vec3::new(2.0, 1.0, 0.5)).length() < 0.02);
 
         let e = load_map(&dir.join("none.exr"), 1.0, Mat3::IDENTITY).unwrap_err().to_string();
         assert!(e.contains("none.exr"), "{e}");

@@ -40,7 +40,7 @@ pub struct Texture {
     pub wrap_v: WrapMode,
 }
 
-/// The sRGB electro-optical transfer function: encoded value in [0,1] to linear light.
+/// The sRGB electro-optical transfer function: encoded value in `[0, 1]` to linear light.
 pub fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
         c / 12.92
@@ -49,7 +49,7 @@ pub fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
-/// Inverse of [`srgb_to_linear`]: linear light to the encoded value (input clamped to [0,1]).
+/// Inverse of [`srgb_to_linear`]: linear light to the encoded value (input clamped to `[0, 1]`).
 pub fn linear_to_srgb(l: f32) -> f32 {
     let l = l.clamp(0.0, 1.0);
     if l <= 0.0031308 {

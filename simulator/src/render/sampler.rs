@@ -62,47 +62,12 @@ const SOBOL: [[u32; 32]; 4] = {
     v
 };
 
-/// Byte tables of the Sobol matrices: `SOBOL_BYTES[d][k][v]` is the XOR of the direction numbers
-/// of dimension `d` selected by the bits of byte value `v` at byte position `k` of the index, so
-/// a point costs four lookups instead of a loop over 32 bits.
-static SOBOL_BYTES: [[[u32; 256]; 4]; 4] = {
-    let mut t = [[[0u32; 256]; 4]; 4];
-    let mut d = 0;
-    while d < 4 {
-        let mut k = 0;
-        while k < 4 {
-            let mut v = 0;
-            while v < 256 {
-                let mut x = 0;
-                let mut bit = 0;
-                while bit < 8 {
-                    if (v >> bit) & 1 == 1 {
-                        x ^= SOBOL[d][k * 8 + bit];
-                    }
-                    bit += 1;
-                }
-                t[d][k][v] = x;
-                v += 1;
-            }
-            k += 1;
-        }
-        d += 1;
-    }
-    t
-};
-
-/// The `index`-th point of Sobol dimension `dim` (0..4) as 32 fixed-point bits.
-#[cfg(test)]
-fn sobol(index: u32, dim: usize) -> u32 {
-    let t = &SOBOL_BYTES[dim];
-    let b = index.to_le_bytes();
-    t[0][b[0] as usize] ^ t[1][b[1] as usize] ^ t[2][b[2] as usize] ^ t[3][b[3] as usize]
-}
-
-/// [`SOBOL_BYTES`] in the bit-reversed domain: `SOBOL_REV_BYTES[d][k][v]` is
-/// `reverse_bits(T[d][3 - k][reverse8(v)])`, so that for any `y`,
-/// `XOR_k SOBOL_REV_BYTES[d][k][byte k of y] = reverse_bits(sobol(reverse_bits(y), d))`. The Owen
-/// scramble works on reversed bits, so this saves two bit reversals per dimension.
+/// Byte tables of the Sobol matrices in the bit-reversed domain: `SOBOL_REV_BYTES[d][k][v]` is
+/// the bit reversal of the XOR of the direction numbers of dimension `d` selected by the bits of
+/// `reverse8(v)` at byte position `3 - k` of the index. So for any `y`,
+/// `XOR_k SOBOL_REV_BYTES[d][k][byte k of y] = reverse_bits(sobol(reverse_bits(y), d))`: four
+/// lookups instead of a loop over 32 bits, and, since the Owen scramble works on reversed bits,
+/// two bit reversals fewer per dimension.
 static SOBOL_REV_BYTES: [[[u32; 256]; 4]; 4] = {
     let mut t = [[[0u32; 256]; 4]; 4];
     let mut d = 0;
@@ -111,7 +76,15 @@ static SOBOL_REV_BYTES: [[[u32; 256]; 4]; 4] = {
         while k < 4 {
             let mut v = 0;
             while v < 256 {
-                t[d][k][v] = SOBOL_BYTES[d][3 - k][(v as u8).reverse_bits() as usize].reverse_bits();
+                let bits = (v as u8).reverse_bits();
+                let (mut x, mut bit) = (0u32, 0);
+                while bit < 8 {
+                    if (bits >> bit) & 1 == 1 {
+                        x ^= SOBOL[d][(3 - k) * 8 + bit];
+                    }
+                    bit += 1;
+                }
+                t[d][k][v] = x.reverse_bits();
                 v += 1;
             }
             k += 1;
@@ -129,9 +102,10 @@ fn sobol_reversed(y: u32, dim: usize) -> u32 {
     t[0][b[0] as usize] ^ t[1][b[1] as usize] ^ t[2][b[2] as usize] ^ t[3][b[3] as usize]
 }
 
-/// Reference implementation of [`sobol`]: XOR of the direction numbers of the set bits.
+/// The `index`-th point of Sobol dimension `dim` by definition: the XOR of the direction numbers
+/// of the set bits (the reference the tables are tested against).
 #[cfg(test)]
-fn sobol_bitwise(mut index: u32, dim: usize) -> u32 {
+fn sobol(mut index: u32, dim: usize) -> u32 {
     let (mut x, mut bit) = (0, 0);
     while index != 0 {
         if index & 1 == 1 {
@@ -242,13 +216,12 @@ mod tests {
         // natural (not Gray-code) order the points are 0, v1, v2, v1^v2, v3, v1^v3
         let pts: Vec<f64> = (0..6).map(|i| sobol(i, 2) as f64 / 4294967296.0).collect();
         assert_eq!(pts, vec![0.0, 0.5, 0.75, 0.25, 0.375, 0.875]);
-        // the byte tables agree with the bit-by-bit definition, and the reversed-domain path
-        // with the plain Owen scramble of the plain Sobol point
+        // the byte tables agree with the definition, and the reversed-domain path with the
+        // plain Owen scramble of the plain Sobol point
         let mut r = crate::render::sampling::Rng::new(5, 6);
         for _ in 0..10_000 {
             let (i, seed) = (r.next_u32(), r.next_u32());
             for d in 0..4 {
-                assert_eq!(sobol(i, d), sobol_bitwise(i, d));
                 assert_eq!(sobol_reversed(i, d), sobol(i.reverse_bits(), d).reverse_bits());
                 let shuffled = owen_scramble(i, seed);
                 assert_eq!(

@@ -36,7 +36,7 @@ fn run(cfg: &EventConfig, frames: &[Image], times: &[i64]) -> Vec<Vec<Event>> {
 /// A smooth pattern moving over time, with random phases.
 fn moving_pattern(w: u32, h: u32, frames: usize, seed: u64) -> Vec<Image> {
     let mut rng = noise::pixel_rng(seed, 0);
-    let ph: Vec<f32> = (0..4).map(|_| rng.next_f32() * 6.28).collect();
+    let ph: Vec<f32> = (0..4).map(|_| rng.next_f32() * std::f32::consts::TAU).collect();
     (0..frames)
         .map(|k| {
             let t = k as f32;
@@ -242,4 +242,148 @@ fn frame_stats_report_the_change_in_thresholds() {
     assert_eq!(st.suggested_interval_ns(1_000_000, 0.5), Some(333_333));
     let st = sim.step(&gray(2, 1, |x, _| i1[x as usize]), 2_000_000, &mut sink).unwrap();
     assert!(!st.undersampled() && st.suggested_interval_ns(1_000_000, 0.5).is_none());
+}
+
+/// Events of a static grey scene over `frames` intervals of `dt_ns`.
+fn static_run(cfg: &EventConfig, w: u32, h: u32, frames: usize, dt_ns: i64) -> Vec<Event> {
+    let img = gray(w, h, |_, _| 0.4);
+    let mut sim = EventSimulator::new(cfg.clone(), w, h).unwrap();
+    let mut sink = VecSink::default();
+    for k in 0..=frames {
+        sim.step(&img, k as i64 * dt_ns, &mut sink).unwrap();
+    }
+    sink.events
+}
+
+#[test]
+fn leak_rate_matches_config() {
+    let rate = 20.0;
+    let cfg = EventConfig { noise: NoiseConfig { leak_rate_hz: rate, ..Default::default() }, ..EventConfig::default() };
+    let (w, h, seconds) = (32u32, 32u32, 2.0);
+    let ev = static_run(&cfg, w, h, 1000, 2_000_000);
+    let measured = ev.len() as f64 / (w * h) as f64 / seconds;
+    assert!((measured / rate as f64 - 1.0).abs() < 0.2, "leak rate {measured} Hz, configured {rate}");
+    assert!(ev.iter().all(|e| e.p == 1), "leak events are ON");
+    // the random phase spreads them out: not all pixels fire in the same nanosecond
+    let first_t: std::collections::HashSet<i64> = ev.iter().take(100).map(|e| e.t_ns).collect();
+    assert!(first_t.len() > 50);
+}
+
+#[test]
+fn shot_noise_rate_matches_config() {
+    let rate = 30.0;
+    let cfg =
+        EventConfig { noise: NoiseConfig { shot_noise_rate_hz: rate, ..Default::default() }, ..EventConfig::default() };
+    let (w, h, seconds) = (32u32, 32u32, 2.0);
+    let ev = static_run(&cfg, w, h, 1000, 2_000_000);
+    let measured = ev.len() as f64 / (w * h) as f64 / seconds;
+    assert!((measured / rate as f64 - 1.0).abs() < 0.2, "shot rate {measured} Hz, configured {rate}");
+    let on = ev.iter().filter(|e| e.p == 1).count() as f64 / ev.len() as f64;
+    assert!((on - 0.5).abs() < 0.03, "ON fraction {on}");
+    assert!(ev.windows(2).all(|p| p[0].t_ns <= p[1].t_ns), "sorted across intervals");
+}
+
+/// Sample mean and standard deviation.
+fn moments(v: &[f32]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let mean = v.iter().map(|&x| x as f64).sum::<f64>() / n;
+    let var = v.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var.sqrt())
+}
+
+#[test]
+fn threshold_mismatch_has_the_configured_statistics() {
+    let (c_pos, c_neg, sigma) = (0.2f32, 0.3f32, 0.03f32);
+    for mode in [MismatchMode::Fixed, MismatchMode::PerInterval] {
+        let noise = NoiseConfig { threshold_mismatch: Some(ThresholdMismatch { sigma, mode }), ..Default::default() };
+        let cfg = EventConfig { c_pos, c_neg, noise, ..EventConfig::default() };
+        let mut sim = EventSimulator::new(cfg, 100, 100).unwrap();
+        let img = gray(100, 100, |_, _| 0.5);
+        sim.step(&img, 0, &mut VecSink::default()).unwrap();
+        let first: Vec<Pixel> = sim.pixels.clone();
+        sim.step(&img, 1_000_000, &mut VecSink::default()).unwrap();
+        for (name, c, get) in [("c_pos", c_pos, (|p: &Pixel| p.c_pos) as fn(&Pixel) -> f32), ("c_neg", c_neg, |p| p.c_neg)] {
+            let v: Vec<f32> = sim.pixels.iter().map(get).collect();
+            let (mean, sd) = moments(&v);
+            // 10^4 samples: standard errors 3e-4 (mean) and 0.7 % (sigma)
+            assert!((mean - c as f64).abs() < 0.0015, "{mode:?} {name}: mean {mean}");
+            assert!((sd / sigma as f64 - 1.0).abs() < 0.05, "{mode:?} {name}: sigma {sd}");
+            let same = first.iter().zip(&sim.pixels).filter(|(a, b)| get(a) == get(b)).count();
+            match mode {
+                MismatchMode::Fixed => assert_eq!(same, v.len(), "fixed thresholds must not change"),
+                MismatchMode::PerInterval => assert!(same < 10, "{same} thresholds not redrawn"),
+            }
+        }
+    }
+}
+
+#[test]
+fn refractory_consumes_or_delays_crossings() {
+    // one pixel ramps by D = 10.5 C over 1 ms: crossings at T_n = n / 10.5 ms, ~95 us apart;
+    // then it stays still for 2 ms
+    let c = 0.2f32;
+    let eps = 1e-3f32;
+    let (i0, i1) = (0.01f32, (eps + 0.01) * (10.5 * c).exp() - eps);
+    let luma = |i: f32| i / Vec3::ONE.dot(LUMA_709); // so that the luma is exactly i (to f32 precision)
+    let frames = [gray(1, 1, |_, _| luma(i0)), gray(1, 1, |_, _| luma(i1)), gray(1, 1, |_, _| luma(i1)), gray(1, 1, |_, _| luma(i1))];
+    let times = [0, ms(1), ms(2), ms(3)];
+    let period = 250_000i64;
+    let log = |i: f32| (eps + Vec3::splat(luma(i)).dot(LUMA_709)).ln() as f64;
+    let d = log(i1) - log(i0);
+    assert_eq!((d / c as f64).floor(), 10.0);
+    let t_cross = |n: usize| (n as f64 * c as f64 / d * 1e6).round() as i64;
+    let cfg = |mode| EventConfig {
+        c_pos: c,
+        c_neg: c,
+        log_eps: eps,
+        noise: NoiseConfig { refractory: Some(Refractory { period_ns: period, mode }), ..Default::default() },
+        ..EventConfig::default()
+    };
+    let times_of = |out: &Vec<Vec<Event>>| out.iter().flatten().map(|e| e.t_ns).collect::<Vec<_>>();
+
+    // ESIM: crossings 2, 3, 5, 6, 8, 9 fall inside the period of the last event and are lost
+    let out = run(&cfg(RefractoryMode::Consume), &frames, &times);
+    assert_eq!(times_of(&out), vec![t_cross(1), t_cross(4), t_cross(7), t_cross(10)]);
+    assert!(out[2].is_empty() && out[3].is_empty(), "consumed crossings never come back");
+
+    // v2e: every crossing fires, one period after the previous event; 4 in the ramp interval,
+    // the 6 still pending at 1 ms in the following still intervals
+    let out = run(&cfg(RefractoryMode::FireLater), &frames, &times);
+    let expected: Vec<i64> = (0..10).map(|k| t_cross(1) + k * period).collect();
+    assert_eq!(times_of(&out), expected);
+    assert_eq!(out.iter().map(Vec::len).collect::<Vec<_>>(), vec![0, 4, 4, 2]);
+    assert!(out.iter().flatten().all(|e| e.p == 1));
+}
+
+#[test]
+fn photoreceptor_low_pass_delays_events_more_in_the_dark() {
+    // an intensity step x2 at frame 1: the filtered log follows
+    // lp_k = L_b - (L_b - L_a) (1 - a)^k with a = ((255 I + 20) / 275) dt 2 pi f, so the
+    // cumulative event count after frame k is floor((lp_k - L_a) / C)
+    let cutoff_hz = 20.0f32;
+    let cfg = EventConfig {
+        c_pos: 0.1,
+        noise: NoiseConfig { photoreceptor: Some(Photoreceptor { cutoff_hz }), ..Default::default() },
+        ..EventConfig::default()
+    };
+    let counts = |lo: f32| {
+        let frames: Vec<Image> = (0..60).map(|k| gray(1, 1, |_, _| if k == 0 { lo } else { 2.0 * lo })).collect();
+        let out = run(&cfg, &frames, &(0..60).map(ms).collect::<Vec<_>>());
+        out.iter().scan(0usize, |n, o| { *n += o.len(); Some(*n) }).collect::<Vec<usize>>()
+    };
+    let expected = |lo: f32| {
+        let i_b = Vec3::splat(2.0 * lo).dot(LUMA_709);
+        let (l_a, l_b) = ((cfg.log_eps + Vec3::splat(lo).dot(LUMA_709)).ln(), (cfg.log_eps + i_b).ln());
+        let a = ((255.0 * i_b + 20.0) / 275.0 * 1e-3 * std::f32::consts::TAU * cutoff_hz) as f64;
+        (0..60).map(|k| (((l_b - l_a) as f64 * (1.0 - (1.0 - a).powi(k)) + 1e-9) / cfg.c_pos as f64).floor() as usize).collect::<Vec<_>>()
+    };
+    let (bright, dim) = (counts(0.4), counts(0.01));
+    for (k, (&got, want)) in bright.iter().zip(expected(0.4)).enumerate() {
+        assert_eq!(got, want, "bright, frame {k}: {got} events, expected {want}");
+    }
+    for (k, (&got, want)) in dim.iter().zip(expected(0.01)).enumerate() {
+        assert_eq!(got, want, "dim, frame {k}: {got} events, expected {want}");
+    }
+    assert!(bright[3] < 6 && bright[59] == 6, "filtered, but all 6 crossings arrive: {bright:?}");
+    assert!(dim[59] < bright[59], "the dim pixel lags: {dim:?}");
 }

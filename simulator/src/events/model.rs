@@ -170,17 +170,20 @@ impl EventSimulator {
             .enumerate()
             .map(|(c, (((px, nz), rgb), out))| {
                 out.clear();
-                iv.chunk(c * ROWS_PER_CHUNK, px, nz, rgb, out)
+                let stats = iv.chunk(c * ROWS_PER_CHUNK, px, nz, rgb, out);
+                sort_events(out, t0, t_ns); // stable: ties keep (y, x, emission) order
+                stats
             })
             .reduce(FrameStats::default, FrameStats::merge);
         self.t_prev = Some(t_ns);
-        // merge: the concatenation is in (y, x, emission) order whatever the chunking; a stable
-        // sort by (t, y, x) then gives the global order with ties broken by emission order
+        // merge the sorted chunk runs: chunks are in row order, so a stable merge by (t, y, x)
+        // gives the same order as a stable sort of the (y, x, emission)-ordered concatenation,
+        // whatever the chunking; the run-detecting stable sort does the k-way merge
         self.merged.clear();
         for b in &self.buffers {
             self.merged.extend_from_slice(b);
         }
-        self.merged.par_sort_by_key(Event::order_key);
+        sort_events(&mut self.merged, t0, t_ns);
         sink.push(&self.merged)?;
         Ok(stats)
     }
@@ -200,7 +203,16 @@ impl EventSimulator {
                 return Err(EventError::NonIncreasingTime { prev_ns: prev, t_ns });
             }
         }
-        let bad = frame.pixels.par_iter().position_first(|p| !(p.is_finite() && p.min_element() >= 0.0));
+        // a branch-free scan per chunk; the position only when a chunk has a bad pixel
+        let good = |p: &Vec3| p.is_finite() & (p.min_element() >= 0.0);
+        let n = self.width as usize * ROWS_PER_CHUNK;
+        let bad = frame
+            .pixels
+            .par_chunks(n)
+            .enumerate()
+            .filter(|(_, ch)| !ch.iter().fold(true, |ok, p| ok & good(p)))
+            .map(|(c, ch)| c * n + ch.iter().position(|p| !good(p)).unwrap_or(0))
+            .min();
         if let Some(i) = bad {
             let w = self.width as usize;
             return Err(EventError::BadIntensity { x: (i % w) as u32, y: (i / w) as u32, rgb: frame.pixels[i].to_array() });
@@ -225,6 +237,16 @@ impl EventSimulator {
                 *nz = PixelNoise { rng, last_t: NO_EVENT, next_shot_t: t_ns.saturating_add(wait) };
             },
         );
+    }
+}
+
+/// Stable sort of the events of the interval `(t0, t1]` by `(t, y, x)`; with a single `u64`
+/// key `(t - t0) << 32 | y << 16 | x` when the interval is shorter than 2^32 ns (4.3 s).
+fn sort_events(events: &mut [Event], t0: i64, t1: i64) {
+    if t1 - t0 < 1 << 32 {
+        events.sort_by_key(|e| ((e.t_ns - t0) as u64) << 32 | (e.y as u64) << 16 | e.x as u64);
+    } else {
+        events.sort_by_key(Event::order_key);
     }
 }
 
@@ -279,7 +301,7 @@ impl Interval<'_> {
                 }
                 // adaptive-sampling hint: the change in thresholds
                 let dl = l1 - p.l;
-                max_change = max_change.max(if dl >= 0.0 { dl / p.c_pos } else { -dl / p.c_neg });
+                max_change = max_change.max((dl / p.c_pos).max(-dl / p.c_neg));
                 // D(u) = L(u) - ref(u) is linear in u in [0, 1]; the leak lowers ref, raising D
                 let leak = leak_per_c * p.c_pos;
                 let d0 = p.l - p.ref_l;

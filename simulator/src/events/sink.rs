@@ -18,8 +18,8 @@ impl Event {
     /// The global output order: time, then row, then column (a stable sort keeps the per-pixel
     /// emission order as the last tie-break).
     #[inline]
-    pub fn order_key(&self) -> (i64, u16, u16) {
-        (self.t_ns, self.y, self.x)
+    pub fn order_key(&self) -> (i64, u32) {
+        (self.t_ns, (self.y as u32) << 16 | self.x as u32)
     }
 }
 

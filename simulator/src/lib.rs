@@ -3,6 +3,8 @@
 //! What lives where:
 //! - [`scene`]: the in-memory scene (triangles, materials, textures, lights, environment, cameras)
 //!   and its loaders (glTF 2.0, OBJ/MTL, the `.toml` render description).
+//! - [`events`]: the event camera (ESIM model + optional v2e non-idealities), frames in, events
+//!   out to a sink.
 //! - [`render`]: the BVH, sampling, BSDFs, lights and the path tracer that turn a scene into a
 //!   linear-light image.
 //! - [`image_io`]: writing linear EXR and 8-bit sRGB PNG, atomically.
@@ -14,6 +16,7 @@
 #![warn(missing_docs)]
 
 pub mod error;
+pub mod events;
 pub mod export;
 pub mod image_io;
 pub mod reference;

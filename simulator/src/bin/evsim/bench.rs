@@ -6,6 +6,11 @@
 //!    faster we reach equal error. Times are medians of `--repeats` runs, alternating renderers.
 //! 2. A 1 M-triangle scene: BVH build time and closest-hit M rays/s (primary and diffuse rays)
 //!    for every obvhs build preset.
+//!
+//! `evsim bench events`: the event model over 1000 frames of 600x400 of a synthetic moving
+//! texture (1000 FPS), events into a counting sink, once ideal and once with every
+//! non-ideality on. Prints the model time (frame generation excluded), the wall time, M pixel
+//! updates/s and M events/s.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -15,13 +20,17 @@ use clap::{Args, Subcommand};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use simulator::events::{
+    CountingSink, EventConfig, EventSimulator, MismatchMode, NoiseConfig, Photoreceptor, Refractory, RefractoryMode,
+    ThresholdMismatch,
+};
 use simulator::export::export_mitsuba;
 use simulator::image_io::read_exr;
 use simulator::reference::compare::rel_mse;
 use simulator::reference::mitsuba;
 use simulator::render::accel::{Accel, BvhPreset};
 use simulator::render::sampler::SamplerKind;
-use simulator::render::film::RenderSettings;
+use simulator::render::film::{Image, RenderSettings};
 use simulator::render::integrator::Renderer;
 use simulator::render::sampling::{cosine_hemisphere, Frame, Rng};
 use simulator::scene::{self, Camera, TriangleMesh};
@@ -31,6 +40,22 @@ use simulator::scene::{self, Camera, TriangleMesh};
 pub enum BenchCommand {
     /// Cornell box throughput vs Mitsuba, and BVH build/trace on a 1 M-triangle scene.
     Render(RenderBench),
+    /// Event-model throughput on a synthetic moving texture (ideal, then all noise on).
+    Events(EventsBench),
+}
+
+/// Options of `evsim bench events`.
+#[derive(Args, Debug)]
+pub struct EventsBench {
+    /// Frames per run (at 1000 FPS).
+    #[arg(long, default_value_t = 1000)]
+    pub frames: usize,
+    /// Frame width in pixels.
+    #[arg(long, default_value_t = 600)]
+    pub width: u32,
+    /// Frame height in pixels.
+    #[arg(long, default_value_t = 400)]
+    pub height: u32,
 }
 
 /// Options of `evsim bench render`.
@@ -60,6 +85,7 @@ pub struct RenderBench {
 pub fn run(what: BenchCommand) -> Result<()> {
     match what {
         BenchCommand::Render(b) => render_bench(&b),
+        BenchCommand::Events(b) => events_bench(&b),
     }
 }
 
@@ -227,6 +253,98 @@ fn bvh_bench(n: usize) -> Result<()> {
             build,
             (w * h) as f64 / t_primary / 1e6,
             n_bounce as f64 / t_diffuse / 1e6
+        );
+    }
+    Ok(())
+}
+
+/// Texture drift per frame in pixels (x, y).
+const DRIFT: (f32, f32) = (0.3, 0.1);
+
+/// A smooth colour texture with some sharp edges, large enough for the drift of `frames`.
+fn bench_texture(w: u32, h: u32, frames: usize) -> Image {
+    let tw = w + (DRIFT.0 * frames as f32) as u32 + 2;
+    let th = h + (DRIFT.1 * frames as f32) as u32 + 2;
+    let mut tex = Image::new(tw, th);
+    tex.pixels.par_chunks_mut(tw as usize).enumerate().for_each(|(y, row)| {
+        let y = y as f32;
+        for (x, p) in row.iter_mut().enumerate() {
+            let x = x as f32;
+            let smooth = 0.5 + 0.25 * (0.05 * x + 0.03 * y).sin() + 0.2 * (0.011 * x - 0.07 * y).cos();
+            let checks = if ((x / 37.0) as i32 + (y / 29.0) as i32) % 2 == 0 { 1.0 } else { 0.35 };
+            let v = (smooth * checks).clamp(0.01, 1.0);
+            *p = Vec3::new(v, v * (0.8 + 0.2 * (0.02 * x).sin()), v * 0.9);
+        }
+    });
+    tex
+}
+
+/// Frame `k`: the texture shifted by `k * DRIFT`, bilinearly interpolated.
+fn bench_frame(tex: &Image, out: &mut Image, k: usize) {
+    let (ox, oy) = (DRIFT.0 * k as f32, DRIFT.1 * k as f32);
+    let (ix, iy) = (ox.floor() as usize, oy.floor() as usize);
+    let (fx, fy) = (ox - ox.floor(), oy - oy.floor());
+    let (w, tw) = (out.width as usize, tex.width as usize);
+    out.pixels.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let r0 = &tex.pixels[(y + iy) * tw + ix..];
+        let r1 = &tex.pixels[(y + iy + 1) * tw + ix..];
+        for (x, p) in row.iter_mut().enumerate() {
+            let a = r0[x].lerp(r0[x + 1], fx);
+            let b = r1[x].lerp(r1[x + 1], fx);
+            *p = a.lerp(b, fy);
+        }
+    });
+}
+
+fn events_bench(b: &EventsBench) -> Result<()> {
+    let noisy = EventConfig {
+        seed: 1,
+        noise: NoiseConfig {
+            threshold_mismatch: Some(ThresholdMismatch { sigma: 0.03, mode: MismatchMode::Fixed }),
+            refractory: Some(Refractory { period_ns: 100_000, mode: RefractoryMode::FireLater }),
+            photoreceptor: Some(Photoreceptor { cutoff_hz: 300.0 }),
+            leak_rate_hz: 0.1,
+            shot_noise_rate_hz: 1.0,
+        },
+        ..EventConfig::default()
+    };
+    let tex = bench_texture(b.width, b.height, b.frames);
+    let mut frame = Image::new(b.width, b.height);
+    println!(
+        "events: {}x{}, {} frames at 1000 FPS, moving texture, counting sink, {} threads",
+        b.width,
+        b.height,
+        b.frames,
+        rayon::current_num_threads()
+    );
+    println!(
+        "  {:<8} {:>8} {:>8} {:>16} {:>10} {:>11} {:>14}",
+        "config", "model s", "wall s", "M px-updates/s", "M events/s", "events", "max |dL|/C"
+    );
+    for (name, cfg) in [("ideal", EventConfig::default()), ("noisy", noisy)] {
+        let mut sim = EventSimulator::new(cfg, b.width, b.height)?;
+        let mut sink = CountingSink::default();
+        let (mut model_s, mut max_change) = (0.0f64, 0.0f32);
+        let wall = Instant::now();
+        for k in 0..b.frames {
+            bench_frame(&tex, &mut frame, k);
+            let t = Instant::now();
+            let st = sim.step(&frame, k as i64 * 1_000_000, &mut sink)?;
+            model_s += t.elapsed().as_secs_f64();
+            max_change = max_change.max(st.max_change_c);
+        }
+        let wall_s = wall.elapsed().as_secs_f64();
+        let updates = b.width as f64 * b.height as f64 * b.frames as f64;
+        let events = sink.on + sink.off;
+        println!(
+            "  {:<8} {:>8.3} {:>8.3} {:>16.1} {:>10.2} {:>11} {:>14.3}",
+            name,
+            model_s,
+            wall_s,
+            updates / model_s / 1e6,
+            events as f64 / model_s / 1e6,
+            events,
+            max_change
         );
     }
     Ok(())

@@ -49,6 +49,7 @@
 //! - [`model`]: [`EventSimulator`], the per-pixel state and the crossing loop; [`FrameStats`].
 //! - [`noise`]: per-pixel random streams and the random draws of the non-idealities.
 //! - [`sink`]: [`Event`], the [`EventSink`] trait, [`VecSink`] and [`CountingSink`].
+//! - [`sinks`]: event files (Ev-DeblurNeRF and DSEC `.h5`, RPG text), streamed and atomic.
 //! - [`error`](mod@error): [`EventError`].
 
 pub mod config;
@@ -56,6 +57,7 @@ pub mod error;
 pub mod model;
 pub mod noise;
 pub mod sink;
+pub mod sinks;
 
 pub use config::{EventConfig, MismatchMode, NoiseConfig, Photoreceptor, Refractory, RefractoryMode, Sensor, ThresholdMismatch};
 pub use error::EventError;

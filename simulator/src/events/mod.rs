@@ -49,7 +49,7 @@
 //! - [`model`]: [`EventSimulator`], the per-pixel state and the crossing loop; [`FrameStats`].
 //! - [`noise`]: per-pixel random streams and the random draws of the non-idealities.
 //! - [`sink`]: [`Event`], the [`EventSink`] trait, [`VecSink`] and [`CountingSink`].
-//! - [`sinks`]: event files (Ev-DeblurNeRF and DSEC `.h5`, RPG text), streamed and atomic.
+//! - [`sinks`]: event files (Ev-DeblurNeRF and DSEC `.h5`, RPG text, `.npz`), streamed and atomic.
 //! - [`error`](mod@error): [`EventError`].
 
 pub mod config;

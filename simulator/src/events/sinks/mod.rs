@@ -5,7 +5,8 @@
 //! | [`SinkKind::NerfH5`] | `.h5` (`--format nerf`, the default) | root datasets `x` u16, `y` u16, `t` i64, `p` i8 (+1 ON / -1 OFF) | ns |
 //! | [`SinkKind::DsecH5`] | `.h5` (`--format dsec`) | `/events/{x u16, y u16, t u32, p u8 (1 ON / 0 OFF)}`, `/t_offset` i64, `/ms_to_idx` u64 | us, `t + t_offset` |
 //! | [`SinkKind::Text`] | `.txt` | one line `t x y p` (RPG/ECD), `p` in {0, 1} | s, 9 decimals |
-//! //!
+//! | [`SinkKind::Npz`] | `.npz` | `x` u16, `y` u16, `t` i64, `p` i8 (+1 / -1) | ns |
+//!
 //! Every writer streams (memory is independent of the event count: at most one batch plus a
 //! compression chunk) and is atomic: it writes to a hidden temporary sibling of the target
 //! (`.name.tmp<pid>`) and renames it into place in `finish()`. A writer dropped without
@@ -15,15 +16,18 @@
 //! - this file: [`SinkKind`], [`H5Layout`], [`EventWriter`] (the closed set of writers),
 //!   [`EventFileError`] and the temporary-file guards shared by the writers.
 //! - [`h5`]: [`NerfH5Sink`] and [`DsecH5Sink`] (pure-Rust HDF5, chunked + deflate).
-//! - [`text`]: [`TextSink`].
+//! - [`text`]: the RPG/ECD lines, [`TextSink`].
+//! - [`npz`]: [`NpzSink`] (stored zip of `.npy` files, no ZIP64: at most 4 GiB).
 
 pub mod h5;
+pub mod npz;
 pub mod text;
 
 use std::io;
 use std::path::{Path, PathBuf};
 
 pub use h5::{DsecH5Sink, NerfH5Sink};
+pub use npz::NpzSink;
 pub use text::TextSink;
 
 use super::{Event, EventSink};
@@ -47,13 +51,15 @@ pub enum SinkKind {
     DsecH5,
     /// RPG/ECD text ([`TextSink`]).
     Text,
+    /// NumPy `.npz` ([`NpzSink`]).
+    Npz,
 }
 
 /// Why an event file could not be chosen.
 #[derive(Debug, thiserror::Error)]
 pub enum EventFileError {
     /// The extension is none of the supported ones.
-    #[error("{path}: unknown event file type; name it .h5 (with --format nerf|dsec) or .txt")]
+    #[error("{path}: unknown event file type; name it .h5 (with --format nerf|dsec), .txt or .npz")]
     UnknownExtension {
         /// The output path.
         path: PathBuf,
@@ -69,7 +75,7 @@ pub enum EventFileError {
 }
 
 impl SinkKind {
-    /// Choose the writer from the extension (`.h5`/`.hdf5`, `.txt`, any case); `layout`
+    /// Choose the writer from the extension (`.h5`/`.hdf5`, `.txt`, `.npz`, any case); `layout`
     /// picks the `.h5` layout (default [`H5Layout::Nerf`]) and is an error for other extensions.
     pub fn from_path(path: &Path, layout: Option<H5Layout>) -> Result<SinkKind, EventFileError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
@@ -81,6 +87,7 @@ impl SinkKind {
                 })
             }
             Some("txt") => SinkKind::Text,
+            Some("npz") => SinkKind::Npz,
             _ => return Err(EventFileError::UnknownExtension { path: path.to_path_buf() }),
         };
         match layout {
@@ -98,6 +105,8 @@ pub enum EventWriter {
     DsecH5(DsecH5Sink),
     /// RPG/ECD text.
     Text(TextSink),
+    /// NumPy `.npz`.
+    Npz(NpzSink),
 }
 
 impl EventWriter {
@@ -108,6 +117,7 @@ impl EventWriter {
             SinkKind::NerfH5 => EventWriter::NerfH5(NerfH5Sink::create(path)?),
             SinkKind::DsecH5 => EventWriter::DsecH5(DsecH5Sink::create(path)?),
             SinkKind::Text => EventWriter::Text(TextSink::create(path)?),
+            SinkKind::Npz => EventWriter::Npz(NpzSink::create(path)?),
         })
     }
 
@@ -117,6 +127,7 @@ impl EventWriter {
             EventWriter::NerfH5(s) => s.finish(),
             EventWriter::DsecH5(s) => s.finish(),
             EventWriter::Text(s) => s.finish(),
+            EventWriter::Npz(s) => s.finish(),
         }
     }
 }
@@ -127,6 +138,7 @@ impl EventSink for EventWriter {
             EventWriter::NerfH5(s) => s.push(events),
             EventWriter::DsecH5(s) => s.push(events),
             EventWriter::Text(s) => s.push(events),
+            EventWriter::Npz(s) => s.push(events),
         }
     }
 }
@@ -175,6 +187,25 @@ impl Drop for AtomicTarget {
         if !self.committed {
             let _ = std::fs::remove_file(&self.tmp);
         }
+    }
+}
+
+/// A scratch file beside an output (`.name<suffix>.tmp<pid>`), removed when dropped.
+pub(crate) struct ScratchFile {
+    /// Its path.
+    pub path: PathBuf,
+}
+
+impl ScratchFile {
+    /// Name a scratch file beside `target`.
+    pub fn beside(target: &Path, suffix: &str) -> ScratchFile {
+        ScratchFile { path: temp_sibling(target, suffix) }
+    }
+}
+
+impl Drop for ScratchFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
     }
 }
 

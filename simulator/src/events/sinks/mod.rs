@@ -42,6 +42,15 @@ pub enum H5Layout {
     Dsec,
 }
 
+impl std::fmt::Display for H5Layout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            H5Layout::Nerf => "nerf",
+            H5Layout::Dsec => "dsec",
+        })
+    }
+}
+
 /// Which writer an output path gets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SinkKind {
@@ -65,7 +74,7 @@ pub enum EventFileError {
         path: PathBuf,
     },
     /// An `.h5` layout was asked for a file that is not `.h5`.
-    #[error("{path}: --format {layout:?} applies only to .h5 files; drop --format or name the file .h5")]
+    #[error("{path}: --format {layout} applies only to .h5 files; drop --format or name the file .h5")]
     LayoutNotH5 {
         /// The output path.
         path: PathBuf,
@@ -94,6 +103,24 @@ impl SinkKind {
             Some(layout) => Err(EventFileError::LayoutNotH5 { path: path.to_path_buf(), layout }),
             None => Ok(kind),
         }
+    }
+}
+
+#[cfg(test)]
+mod kind_tests {
+    use super::*;
+
+    #[test]
+    fn kind_follows_the_extension_and_format() {
+        let k = |p: &str, l| SinkKind::from_path(Path::new(p), l);
+        assert_eq!(k("a/events.h5", None).unwrap(), SinkKind::NerfH5);
+        assert_eq!(k("e.HDF5", Some(H5Layout::Dsec)).unwrap(), SinkKind::DsecH5);
+        assert_eq!(k("e.txt", None).unwrap(), SinkKind::Text);
+        assert_eq!(k("e.npz", None).unwrap(), SinkKind::Npz);
+        let e = k("e.txt", Some(H5Layout::Nerf)).unwrap_err().to_string();
+        assert!(e.contains("e.txt") && e.contains("--format nerf applies only to .h5"), "{e}");
+        let e = k("e.bin", None).unwrap_err().to_string();
+        assert!(e.contains("e.bin") && e.contains(".npz"), "{e}");
     }
 }
 

@@ -5,10 +5,10 @@
 set -eu
 VENV="${HOME}/.cache/evblur/mitsuba-venv"
 PY="${VENV}/bin/python"
-if ! "${PY}" -c 'import mitsuba, numpy; assert mitsuba.__version__ == "3.9.1"' >/dev/null 2>&1; then
+if ! "${PY}" -c 'import mitsuba, numpy, h5py; assert mitsuba.__version__ == "3.9.1"' >/dev/null 2>&1; then
     mkdir -p "${HOME}/.cache/evblur"
     python3 -m venv "${VENV}" >&2
-    "${VENV}/bin/pip" install --quiet mitsuba==3.9.1 numpy >&2
+    "${VENV}/bin/pip" install --quiet mitsuba==3.9.1 numpy h5py >&2
 fi
 if ! ls /usr/lib/*/libLLVM.so.19* /usr/lib/*/libLLVM-19.so* >/dev/null 2>&1; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then

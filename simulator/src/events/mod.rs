@@ -49,15 +49,21 @@
 //! - [`model`]: [`EventSimulator`], the per-pixel state and the crossing loop; [`FrameStats`].
 //! - [`noise`]: per-pixel random streams and the random draws of the non-idealities.
 //! - [`sink`]: [`Event`], the [`EventSink`] trait, [`VecSink`] and [`CountingSink`].
+//! - [`frames`]: [`run_on_frames`], the model over a folder of PNG/EXR frames into an event file
+//!   (`evsim events`).
+//! - [`sinks`]: event files (Ev-DeblurNeRF and DSEC `.h5`, RPG text, `.npz`), streamed and atomic.
 //! - [`error`](mod@error): [`EventError`].
 
 pub mod config;
 pub mod error;
+pub mod frames;
 pub mod model;
 pub mod noise;
 pub mod sink;
+pub mod sinks;
 
 pub use config::{EventConfig, MismatchMode, NoiseConfig, Photoreceptor, Refractory, RefractoryMode, Sensor, ThresholdMismatch};
 pub use error::EventError;
+pub use frames::{run_on_frames, FramesJob, FramesSummary, TimeUnit};
 pub use model::{EventSimulator, FrameStats, LUMA_709};
 pub use sink::{CountingSink, Event, EventSink, VecSink};

@@ -1,6 +1,8 @@
 //! `evsim`: the evblur simulator's command line.
 //!
 //! - `evsim render <scene> --spp N --out img.exr`: path-trace one image.
+//! - `evsim events --frames DIR --timestamps FILE --out events.h5`: the event model over a folder of
+//!   frames into an event file (.h5 Ev-DeblurNeRF or DSEC, .txt, .npz).
 //! - `evsim bench render`: render throughput (and the Mitsuba ratio when Mitsuba is installed),
 //!   BVH build time and ray throughput on a 1 M-triangle scene.
 
@@ -20,6 +22,7 @@ use simulator::render::sampler::SamplerKind;
 use simulator::scene::{self, Camera};
 
 mod bench;
+mod events_cmd;
 
 /// evblur simulator: render scenes (and, soon, event-camera datasets).
 #[derive(Parser, Debug)]
@@ -33,6 +36,8 @@ struct Cli {
 enum Command {
     /// Path-trace one image of a scene (.gltf, .glb, .obj or a .toml render description).
     Render(RenderArgs),
+    /// Run the event model over a folder of frames (PNG or EXR) and write an event file.
+    Events(events_cmd::EventsArgs),
     /// Benchmarks that print performance figures.
     Bench {
         #[command(subcommand)]
@@ -194,6 +199,7 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Render(args) => render(&args),
+        Command::Events(args) => events_cmd::run(&args),
         Command::Bench { what } => bench::run(what),
     }
 }

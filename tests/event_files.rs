@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use glam::Vec3;
-use simulator::events::sinks::{EventWriter, H5Layout, SinkKind};
+use simulator::events::sinks::{EventWriter, H5Layout, SinkKind, VizConfig};
 use simulator::events::{run_on_frames, Event, EventConfig, EventSink, FramesJob, TimeUnit};
 use simulator::image_io::write_image;
 use simulator::reference::mitsuba;
@@ -169,6 +169,7 @@ fn job(frames: &Path, timestamps: &Path, out: &Path, kind: SinkKind) -> FramesJo
         out: out.to_path_buf(),
         kind,
         config: EventConfig::default(),
+        viz: None,
     }
 }
 
@@ -207,6 +208,32 @@ fn evsim_events_runs_on_png_frames() {
     if let Some(py) = python_with_h5py("evsim_events_runs_on_png_frames") {
         run_python(&py, CHECK_CLI, &[out.display().to_string(), (s.on + s.off).to_string()]);
     }
+}
+
+#[test]
+fn evsim_events_with_viz_writes_the_event_file_and_the_pictures() {
+    let dir = temp_dir("cli-viz");
+    let (frames, ts) = write_frames(&dir);
+    let out = dir.join("e.txt");
+    let viz_dir = dir.join("viz");
+    let viz = VizConfig { window_ns: 1_000_000, rate_bin_ns: 500_000, ..VizConfig::new(&viz_dir) };
+    let s = run_on_frames(&FramesJob { viz: Some(viz), ..job(&frames, &ts, &out, SinkKind::Text) }, None).unwrap();
+    let v = s.viz.expect("a viz summary");
+
+    // The tee gave both sinks every event.
+    assert_eq!((v.on, v.off), (s.on, s.off));
+    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count() as u64, s.on + s.off);
+    // Events lie in (10, 14] ms: 4 or 5 windows of 1 ms from the 10 ms one, images 40x24.
+    assert_eq!(v.t_first_window_ns, Some(10_000_000));
+    assert!((4..=5).contains(&v.windows), "{v:?}");
+    for i in 0..v.windows {
+        let img = simulator::events::frames::read_frame(&viz_dir.join(format!("events_{i:06}.png")), true).unwrap();
+        assert_eq!((img.width, img.height), (40, 24));
+    }
+    let csv = std::fs::read_to_string(viz_dir.join("event_rate.csv")).unwrap();
+    let total: u64 = csv.lines().skip(1).map(|l| l.split(',').nth(3).unwrap().parse::<u64>().unwrap()).sum();
+    assert_eq!(total, s.on + s.off);
+    assert!(v.peak_rate_hz >= v.mean_rate_hz && v.mean_rate_hz > 0.0, "{v:?}");
 }
 
 #[test]

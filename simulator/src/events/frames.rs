@@ -9,14 +9,17 @@
 //! Everything that can be checked before the first event is (frame list, timestamp count and
 //! order, the config, the output type); a frame that fails later (unreadable, another size)
 //! stops the run and, the writer being atomic, leaves no output file.
+//!
+//! With [`FramesJob::viz`] set, the events also go (through a [`Tee`]) to a [`VizSink`]: one PNG
+//! per time window and an event-rate table, whose summary is [`FramesSummary::viz`].
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, ensure, Context, Result};
 use indicatif::ProgressBar;
 
-use super::sinks::{EventWriter, SinkKind};
-use super::{EventConfig, EventSimulator, EventSink};
+use super::sinks::{EventWriter, SinkKind, VizConfig, VizSink, VizSummary};
+use super::{EventConfig, EventSimulator, EventSink, Tee};
 use crate::render::film::Image;
 use crate::scene::texture::srgb_to_linear;
 
@@ -60,6 +63,8 @@ pub struct FramesJob {
     pub kind: SinkKind,
     /// The event model's settings.
     pub config: EventConfig,
+    /// Also draw the events (window images + event-rate table) into a folder; None: do not.
+    pub viz: Option<VizConfig>,
 }
 
 /// What a run produced.
@@ -79,6 +84,8 @@ pub struct FramesSummary {
     pub max_change_c: f32,
     /// Frame intervals where some pixel changed by more than one threshold.
     pub undersampled_intervals: usize,
+    /// What the visualisation wrote (when [`FramesJob::viz`] is set).
+    pub viz: Option<VizSummary>,
 }
 
 /// The frame files of `dir` (`.png`, `.exr`, any case), sorted by name.
@@ -161,10 +168,14 @@ pub fn run_on_frames(job: &FramesJob, progress: Option<&ProgressBar>) -> Result<
         );
     }
     job.config.validate()?;
+    if let Some(viz) = &job.viz {
+        viz.validate()?;
+    }
     let first = read_frame(&frames[0], job.linear_input)?;
     let (width, height) = (first.width, first.height);
     let mut sim = EventSimulator::new(job.config.clone(), width, height)?;
     let mut sink = EventWriter::create(&job.out, job.kind)?;
+    let mut viz = job.viz.clone().map(|cfg| VizSink::create(cfg, width, height)).transpose()?;
     if let Some(pb) = progress {
         pb.set_length(frames.len() as u64);
     }
@@ -185,9 +196,11 @@ pub fn run_on_frames(job: &FramesJob, progress: Option<&ProgressBar>) -> Result<
                 frames[0].display()
             );
         }
-        let stats = sim
-            .step(&img, t_ns, &mut sink as &mut dyn EventSink)
-            .with_context(|| format!("{}: event model failed on this frame", path.display()))?;
+        let stats = match viz.as_mut() {
+            Some(viz) => sim.step(&img, t_ns, &mut Tee { a: &mut sink, b: viz } as &mut dyn EventSink),
+            None => sim.step(&img, t_ns, &mut sink as &mut dyn EventSink),
+        };
+        let stats = stats.with_context(|| format!("{}: event model failed on this frame", path.display()))?;
         summary.on += stats.on;
         summary.off += stats.off;
         summary.max_change_c = summary.max_change_c.max(stats.max_change_c);
@@ -198,6 +211,7 @@ pub fn run_on_frames(job: &FramesJob, progress: Option<&ProgressBar>) -> Result<
     }
     let written = sink.finish()?;
     debug_assert_eq!(written, summary.on + summary.off);
+    summary.viz = viz.map(VizSink::finish).transpose()?;
     Ok(summary)
 }
 

@@ -44,14 +44,23 @@
 //! - Shot noise: a Poisson process of `shot_noise_rate_hz` per pixel, polarity 50/50,
 //!   independent of the intensity and of `ref`.
 //!
+//! # Visualisation
+//! [`sinks::VizSink`] draws the stream as one PNG per time window (`events_000000.png`, ...,
+//! default 10 ms, empty windows written blank so the index maps to time): white background, a
+//! pixel red if it had more ON than OFF events in the window, blue if more OFF, magenta on a tie,
+//! fading to white below [`sinks::VizConfig::saturate_count`] events. It also writes
+//! `event_rate.csv` (events per rate bin, default 1 ms) and returns the peak and mean rates.
+//! [`Tee`] feeds it alongside an event file: `evsim events --viz-dir DIR`.
+//!
 //! # What lives where
 //! - [`config`]: [`EventConfig`], [`NoiseConfig`] and their validation.
 //! - [`model`]: [`EventSimulator`], the per-pixel state and the crossing loop; [`FrameStats`].
 //! - [`noise`]: per-pixel random streams and the random draws of the non-idealities.
-//! - [`sink`]: [`Event`], the [`EventSink`] trait, [`VecSink`] and [`CountingSink`].
+//! - [`sink`]: [`Event`], the [`EventSink`] trait, [`VecSink`], [`CountingSink`] and [`Tee`].
 //! - [`frames`]: [`run_on_frames`], the model over a folder of PNG/EXR frames into an event file
-//!   (`evsim events`).
-//! - [`sinks`]: event files (Ev-DeblurNeRF and DSEC `.h5`, RPG text, `.npz`), streamed and atomic.
+//!   and optionally the visualisation (`evsim events`).
+//! - [`sinks`]: event files (Ev-DeblurNeRF and DSEC `.h5`, RPG text, `.npz`), streamed and atomic;
+//!   the visualisation [`sinks::VizSink`] (window PNGs + event-rate table).
 //! - [`error`](mod@error): [`EventError`].
 
 pub mod config;
@@ -66,4 +75,4 @@ pub use config::{EventConfig, MismatchMode, NoiseConfig, Photoreceptor, Refracto
 pub use error::EventError;
 pub use frames::{run_on_frames, FramesJob, FramesSummary, TimeUnit};
 pub use model::{EventSimulator, FrameStats, LUMA_709};
-pub use sink::{CountingSink, Event, EventSink, VecSink};
+pub use sink::{CountingSink, Event, EventSink, Tee, VecSink};

@@ -1,5 +1,5 @@
-//! Events and where they go: the [`EventSink`] trait, an in-memory [`VecSink`] and a
-//! [`CountingSink`] that keeps only the counts (benchmarks).
+//! Events and where they go: the [`EventSink`] trait, an in-memory [`VecSink`], a
+//! [`CountingSink`] that keeps only the counts (benchmarks) and a [`Tee`] that feeds two sinks.
 
 /// One event: the pixel, the time and the sign of the log-intensity change.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -70,5 +70,51 @@ impl EventSink for CountingSink {
             self.last_t_ns = Some(e.t_ns);
         }
         Ok(())
+    }
+}
+
+/// Forwards every batch, unchanged, to two sinks: `a` first, then `b` (e.g. an event file and a
+/// visualisation in one run). An error of `a` stops the batch before `b` sees it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Tee<A, B> {
+    /// The first sink.
+    pub a: A,
+    /// The second sink.
+    pub b: B,
+}
+
+impl<A: EventSink, B: EventSink> EventSink for Tee<A, B> {
+    fn push(&mut self, events: &[Event]) -> std::io::Result<()> {
+        self.a.push(events)?;
+        self.b.push(events)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Keeps each batch as it came.
+    #[derive(Default)]
+    struct Batches(Vec<Vec<Event>>);
+
+    impl EventSink for Batches {
+        fn push(&mut self, events: &[Event]) -> std::io::Result<()> {
+            self.0.push(events.to_vec());
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn tee_forwards_identical_batches_to_both() {
+        let ev = |i: i64| Event { x: i as u16, y: 2 * i as u16, t_ns: 100 * i, p: if i % 3 == 0 { 1 } else { -1 } };
+        let batches: Vec<Vec<Event>> = vec![(0..4).map(ev).collect(), vec![], (4..9).map(ev).collect()];
+        let mut tee = Tee { a: Batches::default(), b: Tee { a: CountingSink::default(), b: Batches::default() } };
+        for b in &batches {
+            tee.push(b).unwrap();
+        }
+        assert_eq!(tee.a.0, batches);
+        assert_eq!(tee.b.b.0, batches);
+        assert_eq!((tee.b.a.on, tee.b.a.off), (3, 6));
     }
 }

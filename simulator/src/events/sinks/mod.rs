@@ -18,10 +18,13 @@
 //! - [`h5`]: [`NerfH5Sink`] and [`DsecH5Sink`] (pure-Rust HDF5, chunked + deflate).
 //! - [`text`]: the RPG/ECD lines, [`TextSink`].
 //! - [`npz`]: [`NpzSink`] (stored zip of `.npy` files, no ZIP64: at most 4 GiB).
+//! - [`viz`]: [`VizSink`], not an event file but a picture of one: a PNG per time window and an
+//!   event-rate table (`evsim events --viz-dir`).
 
 pub mod h5;
 pub mod npz;
 pub mod text;
+pub mod viz;
 
 use std::io;
 use std::path::{Path, PathBuf};
@@ -29,6 +32,7 @@ use std::path::{Path, PathBuf};
 pub use h5::{DsecH5Sink, NerfH5Sink};
 pub use npz::NpzSink;
 pub use text::TextSink;
+pub use viz::{VizConfig, VizConfigError, VizSink, VizSummary};
 
 use super::{Event, EventSink};
 

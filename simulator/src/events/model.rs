@@ -183,7 +183,7 @@ impl EventSimulator {
         for b in &self.buffers {
             self.merged.extend_from_slice(b);
         }
-        sort_events(&mut self.merged, t0, t_ns);
+        par_sort_events(&mut self.merged, t0, t_ns);
         sink.push(&self.merged)?;
         Ok(stats)
     }
@@ -237,6 +237,15 @@ impl EventSimulator {
                 *nz = PixelNoise { rng, last_t: NO_EVENT, next_shot_t: t_ns.saturating_add(wait) };
             },
         );
+    }
+}
+
+/// [`sort_events`] on all cores (stable as well, so the order is the same).
+fn par_sort_events(events: &mut [Event], t0: i64, t1: i64) {
+    if t1 - t0 < 1 << 32 {
+        events.par_sort_by_key(|e| ((e.t_ns - t0) as u64) << 32 | (e.y as u64) << 16 | e.x as u64);
+    } else {
+        events.par_sort_by_key(Event::order_key);
     }
 }
 

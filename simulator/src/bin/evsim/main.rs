@@ -72,13 +72,13 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0)]
     pub camera: usize,
     /// Camera override: position "x,y,z" (needs --look-at).
-    #[arg(long, value_parser = parse_vec3, requires = "look_at")]
+    #[arg(long, value_parser = parse_vec3, requires = "look_at", allow_hyphen_values = true)]
     pub look_from: Option<Vec3>,
     /// Camera override: target point "x,y,z".
-    #[arg(long, value_parser = parse_vec3, requires = "look_from")]
+    #[arg(long, value_parser = parse_vec3, requires = "look_from", allow_hyphen_values = true)]
     pub look_at: Option<Vec3>,
     /// Camera override: up vector "x,y,z".
-    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0")]
+    #[arg(long, value_parser = parse_vec3, default_value = "0,1,0", allow_hyphen_values = true)]
     pub up: Vec3,
     /// Camera override: full vertical field of view in degrees.
     #[arg(long)]

@@ -3,6 +3,8 @@
 //! What lives where:
 //! - [`scene`]: the in-memory scene (triangles, materials, textures, lights, environment, cameras)
 //!   and its loaders (glTF 2.0, OBJ/MTL, the `.toml` render description).
+//! - [`trajectory`]: camera trajectories (key poses, slerp + C1 cubic interpolation, frame times
+//!   in integer ns, the `fast_motion` preset) and LLFF pose rows.
 //! - [`events`]: the event camera (ESIM model + optional v2e non-idealities), frames in, events
 //!   out to a sink.
 //! - [`render`]: the BVH, sampling, BSDFs, lights and the path tracer that turn a scene into a
@@ -22,5 +24,6 @@ pub mod image_io;
 pub mod reference;
 pub mod render;
 pub mod scene;
+pub mod trajectory;
 
 pub use error::SceneError;

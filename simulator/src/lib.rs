@@ -9,6 +9,8 @@
 //!   out to a sink.
 //! - [`render`]: the BVH, sampling, BSDFs, lights and the path tracer that turn a scene into a
 //!   linear-light image.
+//! - [`exposure`]: exposure averaging: streamed linear frames -> box-filtered blurry (or sharp)
+//!   views, and the camera response (sRGB / gamma) to 8-bit PNG.
 //! - [`image_io`]: writing linear EXR and 8-bit sRGB PNG, atomically.
 //! - [`export`]: writing a scene for Mitsuba 3 (PLY + EXR + `scene.json`).
 //! - [`reference`](mod@reference): comparison statistics and the Mitsuba 3 driver for reference checks.
@@ -20,6 +22,7 @@
 pub mod error;
 pub mod events;
 pub mod export;
+pub mod exposure;
 pub mod image_io;
 pub mod reference;
 pub mod render;

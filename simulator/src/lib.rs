@@ -1,4 +1,4 @@
-//! evblur simulator: turns 3D scenes into images (and, later, event-camera datasets).
+//! evblur simulator: turns 3D scenes into images, events and (soon) event-camera datasets.
 //!
 //! What lives where:
 //! - [`scene`]: the in-memory scene (triangles, materials, textures, lights, environment, cameras)

@@ -12,6 +12,8 @@
 //! - [`exposure`]: exposure averaging: streamed linear frames -> box-filtered blurry (or sharp)
 //!   views, and the camera response (sRGB / gamma) to 8-bit PNG.
 //! - [`image_io`]: writing linear EXR and 8-bit sRGB PNG, atomically.
+//! - [`npy`]: NumPy `.npy` / `.npz` files, written (stored zip, atomically) and read (stored or
+//!   deflated), for the dataset's poses and timestamps and the event `.npz` sink.
 //! - [`export`]: writing a scene for Mitsuba 3 (PLY + EXR + `scene.json`).
 //! - [`reference`](mod@reference): comparison statistics and the Mitsuba 3 driver for reference checks.
 //! - [`error`]: the typed errors every loader returns.
@@ -24,6 +26,7 @@ pub mod events;
 pub mod export;
 pub mod exposure;
 pub mod image_io;
+pub mod npy;
 pub mod reference;
 pub mod render;
 pub mod scene;

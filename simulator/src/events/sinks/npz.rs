@@ -1,10 +1,11 @@
 //! NumPy `.npz`: a zip archive of `x.npy` (u16), `y.npy` (u16), `t.npy` (i64, ns) and `p.npy`
 //! (i8, +1 ON / -1 OFF), laid out as `numpy.savez` writes it (entries stored, not compressed).
 //!
-//! A `.npy` header holds the array length, so each column streams to its own scratch file beside
-//! the target (`.name.x.tmp<pid>`, ...) and [`NpzSink::finish`] assembles the archive: for each
-//! entry a local header (CRC-32 patched in after the data), the `.npy` header (format 1.0, padded
-//! to 64 bytes) and the data; then the central directory. No ZIP64: an archive over 4 GiB
+//! The `.npy` header, zip entries and CRC-32 come from [`crate::npy`]. A `.npy` header holds
+//! the array length, so each column streams to its own scratch file beside the target
+//! (`.name.x.tmp<pid>`, ...) and [`NpzSink::finish`] assembles the archive: for each entry a
+//! local header (CRC-32 patched in after the data), the `.npy` header (format 1.0, padded to 64
+//! bytes) and the data; then the central directory. No ZIP64: an archive over 4 GiB
 //! (about 330 M events) is refused while streaming, with the fix (write `.h5`).
 
 use std::fs::File;
@@ -13,6 +14,8 @@ use std::path::Path;
 
 use super::{io_err, AtomicTarget, ScratchFile};
 use crate::events::{Event, EventSink};
+use crate::npy::npy_header;
+use crate::npy::zip::{end_record, Crc32, ZipEntry, MAX_ZIP};
 
 /// The columns: zip entry name, numpy dtype, bytes per element.
 const COLUMNS: [(&str, &str, u64); 4] = [("x.npy", "<u2", 2), ("y.npy", "<u2", 2), ("t.npy", "<i8", 8), ("p.npy", "|i1", 1)];
@@ -21,8 +24,6 @@ const EVENT_BYTES: u64 = 2 + 2 + 8 + 1;
 /// Generous bound on everything but the data: 4 x (local header + name + npy header + central
 /// header + name) + end record.
 const OVERHEAD: u64 = 4 * (30 + 5 + 128 + 46 + 5) + 22;
-/// The largest archive without ZIP64.
-const MAX_ZIP: u64 = u32::MAX as u64;
 
 /// Streams events into four scratch columns and assembles the `.npz` at finish.
 pub struct NpzSink {
@@ -59,7 +60,7 @@ impl NpzSink {
         let mut central = Vec::new();
         let mut offset = 0u64;
         for ((name, descr, item), s) in COLUMNS.into_iter().zip(&self.scratch) {
-            let header = npy_header(descr, self.n);
+            let header = npy_header(descr, &[self.n]);
             let size = header.len() as u64 + self.n * item;
             let entry = ZipEntry { name, size, crc: 0, offset };
             out.write_all(&entry.local_header()).map_err(err)?;
@@ -88,17 +89,9 @@ impl NpzSink {
             out.write_all(&entry.crc.to_le_bytes()).map_err(err)?;
             out.seek(SeekFrom::End(0)).map_err(err)?;
             central.extend_from_slice(&entry.central_header());
-            offset += 30 + name.len() as u64 + size;
+            offset += entry.stored_len();
         }
-        // End of central directory.
-        let mut end = Vec::with_capacity(22);
-        end.extend_from_slice(&0x0605_4b50u32.to_le_bytes());
-        end.extend_from_slice(&[0; 4]); // this disk, disk of the central directory
-        end.extend_from_slice(&(COLUMNS.len() as u16).to_le_bytes());
-        end.extend_from_slice(&(COLUMNS.len() as u16).to_le_bytes());
-        end.extend_from_slice(&(central.len() as u32).to_le_bytes());
-        end.extend_from_slice(&(offset as u32).to_le_bytes());
-        end.extend_from_slice(&[0; 2]); // comment length
+        let end = end_record(COLUMNS.len(), central.len(), offset);
         out.write_all(&central).map_err(err)?;
         out.write_all(&end).map_err(err)?;
         let file = out.into_inner().map_err(|e| io_err(&tmp, "cannot write", e.error()))?;
@@ -129,101 +122,6 @@ impl EventSink for NpzSink {
         }
         self.n = n;
         Ok(())
-    }
-}
-
-/// A `.npy` format 1.0 header for a 1-D array of `n` elements of `descr`, padded with spaces
-/// and a newline to a multiple of 64 bytes (as numpy writes it).
-fn npy_header(descr: &str, n: u64) -> Vec<u8> {
-    let dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({n},), }}");
-    let pad = (64 - (10 + dict.len() + 1) % 64) % 64;
-    let mut h = b"\x93NUMPY\x01\x00".to_vec();
-    h.extend_from_slice(&((dict.len() + pad + 1) as u16).to_le_bytes());
-    h.extend_from_slice(dict.as_bytes());
-    h.resize(h.len() + pad, b' ');
-    h.push(b'\n');
-    h
-}
-
-/// One stored (uncompressed) zip entry.
-#[derive(Clone, Copy)]
-struct ZipEntry {
-    name: &'static str,
-    /// Size of the entry's data (stored: compressed = uncompressed).
-    size: u64,
-    crc: u32,
-    /// Offset of its local header in the archive.
-    offset: u64,
-}
-
-impl ZipEntry {
-    /// The fields shared by the local and central headers, from "version needed" to the name
-    /// length: version 2.0, no flags, stored, DOS time 00:00 of 1980-01-01.
-    fn common(&self) -> Vec<u8> {
-        let mut v = Vec::with_capacity(26);
-        v.extend_from_slice(&20u16.to_le_bytes()); // version needed
-        v.extend_from_slice(&0u16.to_le_bytes()); // flags
-        v.extend_from_slice(&0u16.to_le_bytes()); // method: stored
-        v.extend_from_slice(&0u16.to_le_bytes()); // time
-        v.extend_from_slice(&0x0021u16.to_le_bytes()); // date 1980-01-01
-        v.extend_from_slice(&self.crc.to_le_bytes());
-        v.extend_from_slice(&(self.size as u32).to_le_bytes()); // compressed
-        v.extend_from_slice(&(self.size as u32).to_le_bytes()); // uncompressed
-        v.extend_from_slice(&(self.name.len() as u16).to_le_bytes());
-        v.extend_from_slice(&0u16.to_le_bytes()); // extra length
-        v
-    }
-
-    fn local_header(&self) -> Vec<u8> {
-        let mut v = 0x0403_4b50u32.to_le_bytes().to_vec();
-        v.extend_from_slice(&self.common());
-        v.extend_from_slice(self.name.as_bytes());
-        v
-    }
-
-    fn central_header(&self) -> Vec<u8> {
-        let mut v = 0x0201_4b50u32.to_le_bytes().to_vec();
-        v.extend_from_slice(&20u16.to_le_bytes()); // version made by
-        v.extend_from_slice(&self.common());
-        v.extend_from_slice(&[0; 6]); // comment length, disk start, internal attributes
-        v.extend_from_slice(&[0; 4]); // external attributes
-        v.extend_from_slice(&(self.offset as u32).to_le_bytes());
-        v.extend_from_slice(self.name.as_bytes());
-        v
-    }
-}
-
-/// CRC-32 (IEEE 802.3, reflected polynomial 0xEDB88320), as zip uses it.
-struct Crc32(u32);
-
-/// The byte-wise lookup table of [`Crc32`].
-const CRC_TABLE: [u32; 256] = {
-    let mut t = [0u32; 256];
-    let mut i = 0;
-    while i < 256 {
-        let mut c = i as u32;
-        let mut k = 0;
-        while k < 8 {
-            c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
-            k += 1;
-        }
-        t[i] = c;
-        i += 1;
-    }
-    t
-};
-
-impl Crc32 {
-    fn new() -> Crc32 {
-        Crc32(!0)
-    }
-    fn update(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = CRC_TABLE[((self.0 ^ b as u32) & 0xff) as usize] ^ (self.0 >> 8);
-        }
-    }
-    fn finish(&self) -> u32 {
-        !self.0
     }
 }
 

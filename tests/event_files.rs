@@ -128,7 +128,12 @@ fn event_files_read_back_in_python() {
     let dir = temp_dir("formats");
     let (n, t0) = (5000, 1_234_567_890);
     let events = known_events(n, t0);
-    for (name, layout) in [("nerf.h5", Some(H5Layout::Nerf)), ("dsec.h5", Some(H5Layout::Dsec)), ("events.npz", None), ("events.txt", None)] {
+    for (name, layout) in [
+        ("nerf.h5", Some(H5Layout::Nerf)),
+        ("dsec.h5", Some(H5Layout::Dsec)),
+        ("events.npz", None),
+        ("events.txt", None),
+    ] {
         let path = dir.join(name);
         let mut sink = EventWriter::create(&path, SinkKind::from_path(&path, layout).unwrap()).unwrap();
         for batch in events.chunks(700) {
@@ -136,7 +141,8 @@ fn event_files_read_back_in_python() {
         }
         assert_eq!(sink.finish().unwrap(), n as u64, "{name}");
     }
-    let mut names: Vec<String> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    let mut names: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
     names.sort();
     assert_eq!(names, ["dsec.h5", "events.npz", "events.txt", "nerf.h5"], "no temporary files remain");
     let Some(py) = python_with_h5py("event_files_read_back_in_python") else { return };
@@ -265,6 +271,7 @@ fn evsim_events_input_errors_name_the_file_and_leave_no_output() {
     let e = err(&job(&frames, &ts, &out, SinkKind::Npz));
     assert!(e.contains("frame_003.png") && e.contains("cannot read"), "{e}");
 
-    let left: Vec<String> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+    let left: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
     assert!(!left.iter().any(|n| n.contains("events") || n.contains("tmp")), "{left:?}");
 }

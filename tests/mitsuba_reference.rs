@@ -117,9 +117,7 @@ fn path_tracer_matches_mitsuba() {
     let variant = std::env::var("EVBLUR_MITSUBA_VARIANT").unwrap_or_else(|_| "llvm_ad_rgb".into());
     let rows: Vec<Row> = SCENES.iter().flat_map(|s| check_scene(&python, &variant, s)).collect();
 
-    println!(
-        "\nMitsuba reference, {WIDTH}x{HEIGHT}, {SPP} spp vs ground truth at {GT_SPP} spp, tiles {TILE}x{TILE}"
-    );
+    println!("\nMitsuba reference, {WIDTH}x{HEIGHT}, {SPP} spp vs ground truth at {GT_SPP} spp, tiles {TILE}x{TILE}");
     println!(
         "{:<13} {:<11} {:>11} {:>11} {:>6} {:>8} {:>6} {:>8} {:>8} {:>9} {:>9}  GT",
         "scene", "sampler", "relMSE ours", "relMSE mi", "ratio", "max|z|", "bad", "mi|z|", "ours s", "mi s", "mi jit s"
@@ -129,14 +127,28 @@ fn path_tracer_matches_mitsuba() {
         let ratio = r.rel_ours / r.rel_mitsuba;
         println!(
             "{:<13} {:<11} {:>11.3e} {:>11.3e} {:>6.2} {:>8.2} {:>6} {:>8.2} {:>8.2} {:>9.2} {:>9.2}  {} ({})",
-            r.scene, format!("{:?}", r.sampler), r.rel_ours, r.rel_mitsuba, ratio, r.z_ours, r.bad_tiles, r.z_mitsuba, r.t_ours,
-            r.mitsuba.render_s, r.mitsuba.warmup_s, r.gt_note, r.mitsuba.variant
+            r.scene,
+            format!("{:?}", r.sampler),
+            r.rel_ours,
+            r.rel_mitsuba,
+            ratio,
+            r.z_ours,
+            r.bad_tiles,
+            r.z_mitsuba,
+            r.t_ours,
+            r.mitsuba.render_s,
+            r.mitsuba.warmup_s,
+            r.gt_note,
+            r.mitsuba.variant
         );
         if ratio.is_nan() || ratio > RATIO_MAX {
             failures.push(format!("{} {:?}: relMSE ratio {ratio:.2} > {RATIO_MAX}", r.scene, r.sampler));
         }
         if r.bad_tiles > 0 {
-            failures.push(format!("{} {:?}: {} tiles with |z| > {Z_MAX} (max {:.1})", r.scene, r.sampler, r.bad_tiles, r.z_ours));
+            failures.push(format!(
+                "{} {:?}: {} tiles with |z| > {Z_MAX} (max {:.1})",
+                r.scene, r.sampler, r.bad_tiles, r.z_ours
+            ));
         }
     }
     assert!(failures.is_empty(), "Mitsuba reference check failed:\n{}", failures.join("\n"));

@@ -22,8 +22,9 @@ fn temp_dir(name: &str) -> PathBuf {
 
 /// The Python with numpy, or None (after printing SKIPPED; a panic when required).
 fn python_with_numpy(test: &str) -> Option<PathBuf> {
-    let py =
-        mitsuba::python().filter(|py| Command::new(py).args(["-c", "import numpy"]).output().map(|o| o.status.success()).unwrap_or(false));
+    let py = mitsuba::python().filter(|py| {
+        Command::new(py).args(["-c", "import numpy"]).output().map(|o| o.status.success()).unwrap_or(false)
+    });
     if py.is_none() {
         let msg = "no Python with numpy (run tests/mitsuba/setup.sh, or set EVBLUR_MITSUBA_PYTHON)";
         if std::env::var("EVBLUR_REQUIRE_MITSUBA").as_deref() == Ok("1") {
@@ -61,7 +62,11 @@ fn numpy_reads_our_npy_and_npz() {
     let end: Vec<f64> = mid.iter().map(|t| t + 12_500.25).collect();
     write_npz(
         &dir.join("images_1/timestamps.npz"),
-        &[("timestamps", NpyArray::vector(mid)), ("timestamps_start", NpyArray::vector(start)), ("timestamps_end", NpyArray::vector(end))],
+        &[
+            ("timestamps", NpyArray::vector(mid)),
+            ("timestamps_start", NpyArray::vector(start)),
+            ("timestamps_end", NpyArray::vector(end)),
+        ],
     )
     .unwrap();
     let script = r#"

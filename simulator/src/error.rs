@@ -42,11 +42,7 @@ impl SceneError {
         SceneError::Invalid { path: path.into(), element: element.into(), message: message.into() }
     }
     /// Shorthand for [`SceneError::Unsupported`].
-    pub fn unsupported(
-        path: impl Into<PathBuf>,
-        element: impl Into<String>,
-        message: impl Into<String>,
-    ) -> Self {
+    pub fn unsupported(path: impl Into<PathBuf>, element: impl Into<String>, message: impl Into<String>) -> Self {
         SceneError::Unsupported { path: path.into(), element: element.into(), message: message.into() }
     }
     /// Shorthand for [`SceneError::Io`].

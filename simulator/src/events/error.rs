@@ -26,7 +26,9 @@ pub enum EventError {
         got_height: u32,
     },
     /// A frame's time is not after the previous frame's.
-    #[error("frame time {t_ns} ns is not after the previous frame time {prev_ns} ns; frame times must strictly increase")]
+    #[error(
+        "frame time {t_ns} ns is not after the previous frame time {prev_ns} ns; frame times must strictly increase"
+    )]
     NonIncreasingTime {
         /// The previous frame's time, ns.
         prev_ns: i64,

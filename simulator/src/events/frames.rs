@@ -90,8 +90,9 @@ pub struct FramesSummary {
 
 /// The frame files of `dir` (`.png`, `.exr`, any case), sorted by name.
 pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>> {
-    let entries = std::fs::read_dir(dir)
-        .with_context(|| format!("{}: cannot list the frames folder; pass an existing folder to --frames", dir.display()))?;
+    let entries = std::fs::read_dir(dir).with_context(|| {
+        format!("{}: cannot list the frames folder; pass an existing folder to --frames", dir.display())
+    })?;
     let mut frames = Vec::new();
     for entry in entries {
         let path = entry.with_context(|| format!("{}: cannot list the frames folder", dir.display()))?.path();
@@ -101,25 +102,38 @@ pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>> {
         }
     }
     frames.sort_by(|a, b| a.file_name().cmp(&b.file_name()));
-    ensure!(frames.len() >= 2, "{}: holds {} .png/.exr frame(s); the event model needs at least 2", dir.display(), frames.len());
+    ensure!(
+        frames.len() >= 2,
+        "{}: holds {} .png/.exr frame(s); the event model needs at least 2",
+        dir.display(),
+        frames.len()
+    );
     Ok(frames)
 }
 
 /// Read a timestamps file into strictly increasing integer nanoseconds.
 pub fn read_timestamps(path: &Path, unit: TimeUnit) -> Result<Vec<i64>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("{}: cannot read the timestamps file; pass an existing text file to --timestamps", path.display()))?;
+    let text = std::fs::read_to_string(path).with_context(|| {
+        format!("{}: cannot read the timestamps file; pass an existing text file to --timestamps", path.display())
+    })?;
     let mut times: Vec<i64> = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let bad = || format!("{}: line {}: \"{line}\" is not one number; write one frame time per line", path.display(), i + 1);
+        let bad = || {
+            format!("{}: line {}: \"{line}\" is not one number; write one frame time per line", path.display(), i + 1)
+        };
         // Integers convert exactly; decimals through f64, rounded to the nearest ns.
         let t = match line.parse::<i64>() {
             Ok(v) if unit == TimeUnit::Ns => Some(v),
-            _ => line.parse::<f64>().ok().map(|v| v * unit.ns()).filter(|v| v.is_finite() && v.abs() < 9e18).map(|v| v.round() as i64),
+            _ => line
+                .parse::<f64>()
+                .ok()
+                .map(|v| v * unit.ns())
+                .filter(|v| v.is_finite() && v.abs() < 9e18)
+                .map(|v| v.round() as i64),
         };
         let t = t.with_context(bad)?;
         if let Some(&prev) = times.last() {

@@ -71,7 +71,9 @@ pub mod noise;
 pub mod sink;
 pub mod sinks;
 
-pub use config::{EventConfig, MismatchMode, NoiseConfig, Photoreceptor, Refractory, RefractoryMode, Sensor, ThresholdMismatch};
+pub use config::{
+    EventConfig, MismatchMode, NoiseConfig, Photoreceptor, Refractory, RefractoryMode, Sensor, ThresholdMismatch,
+};
 pub use error::EventError;
 pub use frames::{run_on_frames, FramesJob, FramesSummary, TimeUnit};
 pub use model::{EventSimulator, FrameStats, LUMA_709};

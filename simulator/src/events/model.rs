@@ -72,7 +72,8 @@ impl FrameStats {
     /// `lambda` thresholds at the current rate (ESIM uses `lambda = 0.5`); `None` when nothing
     /// changed.
     pub fn suggested_interval_ns(&self, dt_ns: i64, lambda: f32) -> Option<i64> {
-        (self.max_change_c > 0.0).then(|| ((dt_ns as f64 * lambda as f64 / self.max_change_c as f64).round() as i64).max(1))
+        (self.max_change_c > 0.0)
+            .then(|| ((dt_ns as f64 * lambda as f64 / self.max_change_c as f64).round() as i64).max(1))
     }
 
     fn merge(self, o: FrameStats) -> FrameStats {
@@ -215,7 +216,11 @@ impl EventSimulator {
             .min();
         if let Some(i) = bad {
             let w = self.width as usize;
-            return Err(EventError::BadIntensity { x: (i % w) as u32, y: (i / w) as u32, rgb: frame.pixels[i].to_array() });
+            return Err(EventError::BadIntensity {
+                x: (i % w) as u32,
+                y: (i / w) as u32,
+                rgb: frame.pixels[i].to_array(),
+            });
         }
         Ok(())
     }
@@ -287,7 +292,14 @@ fn first_reach(d0: f64, k: f64, c: f64, u_lo: f64) -> Option<f64> {
 
 impl Interval<'_> {
     /// Advance the pixels of rows `y0..` over the interval, appending their events to `out`.
-    fn chunk(&self, y0: usize, px: &mut [Pixel], nz: &mut [PixelNoise], rgb: &[Vec3], out: &mut Vec<Event>) -> FrameStats {
+    fn chunk(
+        &self,
+        y0: usize,
+        px: &mut [Pixel],
+        nz: &mut [PixelNoise],
+        rgb: &[Vec3],
+        out: &mut Vec<Event>,
+    ) -> FrameStats {
         let cfg = self.cfg;
         let nc = &cfg.noise;
         let redraw = nc.threshold_mismatch.filter(|m| m.mode == MismatchMode::PerInterval).map(|m| m.sigma);
@@ -295,7 +307,8 @@ impl Interval<'_> {
         let shot = nc.shot_noise_rate_hz > 0.0;
         let mut max_change = 0.0f32;
         let before = out.len();
-        let rows = px.chunks_exact_mut(self.width).zip(nz.chunks_exact_mut(self.width)).zip(rgb.chunks_exact(self.width));
+        let rows =
+            px.chunks_exact_mut(self.width).zip(nz.chunks_exact_mut(self.width)).zip(rgb.chunks_exact(self.width));
         for (r, ((px, nz), rgb)) in rows.enumerate() {
             let y = y0 + r;
             for (x, ((p, n), &c)) in px.iter_mut().zip(nz.iter_mut()).zip(rgb).enumerate() {
@@ -329,7 +342,8 @@ impl Interval<'_> {
                     while n.next_shot_t <= self.t1 {
                         let pol = if n.rng.next_u32() & 1 == 0 { 1 } else { -1 };
                         out.push(Event { x: x as u16, y: y as u16, t_ns: n.next_shot_t, p: pol });
-                        n.next_shot_t = n.next_shot_t.saturating_add(noise::exp_wait_ns(&mut n.rng, nc.shot_noise_rate_hz));
+                        n.next_shot_t =
+                            n.next_shot_t.saturating_add(noise::exp_wait_ns(&mut n.rng, nc.shot_noise_rate_hz));
                     }
                 }
             }

@@ -182,9 +182,15 @@ fn bad_config_names_the_field() {
     assert_eq!(field(EventConfig { log_eps: 0.0, ..d() }), "log_eps");
     let nz = |noise: NoiseConfig| EventConfig { noise, ..d() };
     assert_eq!(field(nz(NoiseConfig { leak_rate_hz: -1.0, ..Default::default() })), "noise.leak_rate_hz");
-    assert_eq!(field(nz(NoiseConfig { shot_noise_rate_hz: f32::NAN, ..Default::default() })), "noise.shot_noise_rate_hz");
+    assert_eq!(
+        field(nz(NoiseConfig { shot_noise_rate_hz: f32::NAN, ..Default::default() })),
+        "noise.shot_noise_rate_hz"
+    );
     let tm = Some(ThresholdMismatch { sigma: -0.01, mode: MismatchMode::Fixed });
-    assert_eq!(field(nz(NoiseConfig { threshold_mismatch: tm, ..Default::default() })), "noise.threshold_mismatch.sigma");
+    assert_eq!(
+        field(nz(NoiseConfig { threshold_mismatch: tm, ..Default::default() })),
+        "noise.threshold_mismatch.sigma"
+    );
     let pr = Some(Photoreceptor { cutoff_hz: 0.0 });
     assert_eq!(field(nz(NoiseConfig { photoreceptor: pr, ..Default::default() })), "noise.photoreceptor.cutoff_hz");
     // config files reject unknown keys, also nested ones
@@ -302,7 +308,9 @@ fn threshold_mismatch_has_the_configured_statistics() {
         sim.step(&img, 0, &mut VecSink::default()).unwrap();
         let first: Vec<Pixel> = sim.pixels.clone();
         sim.step(&img, 1_000_000, &mut VecSink::default()).unwrap();
-        for (name, c, get) in [("c_pos", c_pos, (|p: &Pixel| p.c_pos) as fn(&Pixel) -> f32), ("c_neg", c_neg, |p| p.c_neg)] {
+        for (name, c, get) in
+            [("c_pos", c_pos, (|p: &Pixel| p.c_pos) as fn(&Pixel) -> f32), ("c_neg", c_neg, |p| p.c_neg)]
+        {
             let v: Vec<f32> = sim.pixels.iter().map(get).collect();
             let (mean, sd) = moments(&v);
             // 10^4 samples: standard errors 3e-4 (mean) and 0.7 % (sigma)
@@ -325,7 +333,12 @@ fn refractory_consumes_or_delays_crossings() {
     let eps = 1e-3f32;
     let (i0, i1) = (0.01f32, (eps + 0.01) * (10.5 * c).exp() - eps);
     let luma = |i: f32| i / Vec3::ONE.dot(LUMA_709); // so that the luma is exactly i (to f32 precision)
-    let frames = [gray(1, 1, |_, _| luma(i0)), gray(1, 1, |_, _| luma(i1)), gray(1, 1, |_, _| luma(i1)), gray(1, 1, |_, _| luma(i1))];
+    let frames = [
+        gray(1, 1, |_, _| luma(i0)),
+        gray(1, 1, |_, _| luma(i1)),
+        gray(1, 1, |_, _| luma(i1)),
+        gray(1, 1, |_, _| luma(i1)),
+    ];
     let times = [0, ms(1), ms(2), ms(3)];
     let period = 250_000i64;
     let log = |i: f32| (eps + Vec3::splat(luma(i)).dot(LUMA_709)).ln() as f64;
@@ -369,13 +382,20 @@ fn photoreceptor_low_pass_delays_events_more_in_the_dark() {
     let counts = |lo: f32| {
         let frames: Vec<Image> = (0..60).map(|k| gray(1, 1, |_, _| if k == 0 { lo } else { 2.0 * lo })).collect();
         let out = run(&cfg, &frames, &(0..60).map(ms).collect::<Vec<_>>());
-        out.iter().scan(0usize, |n, o| { *n += o.len(); Some(*n) }).collect::<Vec<usize>>()
+        out.iter()
+            .scan(0usize, |n, o| {
+                *n += o.len();
+                Some(*n)
+            })
+            .collect::<Vec<usize>>()
     };
     let expected = |lo: f32| {
         let i_b = Vec3::splat(2.0 * lo).dot(LUMA_709);
         let (l_a, l_b) = ((cfg.log_eps + Vec3::splat(lo).dot(LUMA_709)).ln(), (cfg.log_eps + i_b).ln());
         let a = ((255.0 * i_b + 20.0) / 275.0 * 1e-3 * std::f32::consts::TAU * cutoff_hz) as f64;
-        (0..60).map(|k| (((l_b - l_a) as f64 * (1.0 - (1.0 - a).powi(k)) + 1e-9) / cfg.c_pos as f64).floor() as usize).collect::<Vec<_>>()
+        (0..60)
+            .map(|k| (((l_b - l_a) as f64 * (1.0 - (1.0 - a).powi(k)) + 1e-9) / cfg.c_pos as f64).floor() as usize)
+            .collect::<Vec<_>>()
     };
     let (bright, dim) = (counts(0.4), counts(0.01));
     for (k, (&got, want)) in bright.iter().zip(expected(0.4)).enumerate() {

@@ -188,7 +188,13 @@ fn bsdf(scene: &Scene, material: &Material, m: usize, element: &str, out_dir: &P
 }
 
 /// The `area` emitter of `material`, if it emits.
-fn emitter(scene: &Scene, material: &Material, m: usize, element: &str, out_dir: &Path) -> Result<Option<Value>, ExportError> {
+fn emitter(
+    scene: &Scene,
+    material: &Material,
+    m: usize,
+    element: &str,
+    out_dir: &Path,
+) -> Result<Option<Value>, ExportError> {
     if !material.is_emissive() {
         return Ok(None);
     }
@@ -214,10 +220,18 @@ fn shape(file: &str, bsdf: &Value, emitter: Option<&Value>) -> Value {
 }
 
 /// Write texture `t` times `factor` as a linear float EXR and return its `bitmap` dict.
-fn bitmap(scene: &Scene, t: TextureRef, factor: Vec3, file: &str, element: &str, out_dir: &Path) -> Result<Value, ExportError> {
-    let tex = scene.textures.get(t.index as usize).ok_or_else(|| {
-        ExportError::not_exportable(element, format!("texture index {} out of range", t.index))
-    })?;
+fn bitmap(
+    scene: &Scene,
+    t: TextureRef,
+    factor: Vec3,
+    file: &str,
+    element: &str,
+    out_dir: &Path,
+) -> Result<Value, ExportError> {
+    let tex = scene
+        .textures
+        .get(t.index as usize)
+        .ok_or_else(|| ExportError::not_exportable(element, format!("texture index {} out of range", t.index)))?;
     if tex.wrap_u != tex.wrap_v {
         return Err(ExportError::not_exportable(
             element,
@@ -461,8 +475,12 @@ mod tests {
         assert_eq!(s["sensor"]["fov_axis"], "y");
         assert!(s["sensor"]["fov"].is_f64());
         // forward is -Z of the camera: the target lies towards the box
-        let target: Vec<f64> =
-            s["sensor"]["to_world"]["look_at"]["target"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        let target: Vec<f64> = s["sensor"]["to_world"]["look_at"]["target"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
         assert_eq!(&target[..2], &[0.0, 0.0]);
         assert!((target[2] - 2.9).abs() < 1e-5, "{target:?}");
         let ply = std::fs::read(dir.join("mesh_1.ply")).unwrap();

@@ -75,8 +75,9 @@ pub(crate) fn parse_header(bytes: &[u8]) -> Result<Header, String> {
         p.expect(b':')?;
         match key.as_str() {
             "descr" => {
-                descr =
-                    Some(p.string().map_err(|_| "'descr' is not a plain dtype string (structured dtypes are not supported)".to_string())?)
+                descr = Some(p.string().map_err(|_| {
+                    "'descr' is not a plain dtype string (structured dtypes are not supported)".to_string()
+                })?)
             }
             "fortran_order" => fortran_order = Some(p.boolean()?),
             "shape" => shape = Some(p.tuple()?),

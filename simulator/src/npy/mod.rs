@@ -46,7 +46,8 @@ pub enum DType {
 
 impl DType {
     /// Every dtype, in declaration order.
-    pub const ALL: [DType; 9] = [DType::F64, DType::F32, DType::I64, DType::U64, DType::I32, DType::U16, DType::U8, DType::I8, DType::Bool];
+    pub const ALL: [DType; 9] =
+        [DType::F64, DType::F32, DType::I64, DType::U64, DType::I32, DType::U16, DType::U8, DType::I8, DType::Bool];
 
     /// The numpy `descr` string numpy writes for it (little-endian).
     pub fn descr(self) -> &'static str {
@@ -78,9 +79,9 @@ impl DType {
         let (order, code) = (descr.get(..1).unwrap_or(""), descr.get(1..).unwrap_or(""));
         let dtype = DType::ALL.into_iter().find(|d| &d.descr()[1..] == code);
         match (order, dtype) {
-            (">", Some(d)) if d.size() > 1 => {
-                Err(format!("big-endian dtype '{descr}' is not supported; save it little-endian (arr.astype('<{code}'))"))
-            }
+            (">", Some(d)) if d.size() > 1 => Err(format!(
+                "big-endian dtype '{descr}' is not supported; save it little-endian (arr.astype('<{code}'))"
+            )),
             ("<" | "|" | "=" | ">", Some(d)) if d.size() == 1 => Ok(d),
             ("<", Some(d)) => Ok(d),
             _ => Err(format!("dtype '{descr}' is not supported (use one of f8 f4 i8 u8 i4 u2 u1 i1 b1)")),
@@ -188,7 +189,10 @@ impl NpyData {
         macro_rules! decode {
             ($t:ty, $variant:ident) => {
                 NpyData::$variant(
-                    bytes.chunks_exact(std::mem::size_of::<$t>()).map(|c| <$t>::from_le_bytes(c.try_into().unwrap())).collect(),
+                    bytes
+                        .chunks_exact(std::mem::size_of::<$t>())
+                        .map(|c| <$t>::from_le_bytes(c.try_into().unwrap()))
+                        .collect(),
                 )
             };
         }
@@ -218,7 +222,8 @@ impl NpyArray {
     /// another rank or does not match the number of elements.
     pub fn new(shape: &[usize], data: impl Into<NpyData>) -> Option<NpyArray> {
         let data = data.into();
-        let ok = matches!(shape.len(), 1 | 2) && shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)) == Some(data.len());
+        let ok =
+            matches!(shape.len(), 1 | 2) && shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)) == Some(data.len());
         ok.then(|| NpyArray { shape: shape.to_vec(), data })
     }
 
@@ -278,16 +283,29 @@ impl NpyArray {
         let h = header::parse_header(bytes).map_err(bad)?;
         let dtype = DType::from_descr(&h.descr).map_err(bad)?;
         if h.fortran_order && h.shape.iter().filter(|&&d| d > 1).count() > 1 {
-            return Err(bad("Fortran (column-major) order is not supported; save a C-order array (np.ascontiguousarray)".into()));
+            return Err(bad(
+                "Fortran (column-major) order is not supported; save a C-order array (np.ascontiguousarray)".into(),
+            ));
         }
         if !matches!(h.shape.len(), 1 | 2) {
-            return Err(bad(format!("shape {:?} has {} dimensions; only 1-D and 2-D arrays are supported", h.shape, h.shape.len())));
+            return Err(bad(format!(
+                "shape {:?} has {} dimensions; only 1-D and 2-D arrays are supported",
+                h.shape,
+                h.shape.len()
+            )));
         }
-        let n = h.shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d)).ok_or_else(|| bad(format!("shape {:?} overflows", h.shape)))?;
+        let n = h
+            .shape
+            .iter()
+            .try_fold(1usize, |a, &d| a.checked_mul(d))
+            .ok_or_else(|| bad(format!("shape {:?} overflows", h.shape)))?;
         let want = n.checked_mul(dtype.size()).ok_or_else(|| bad(format!("shape {:?} overflows", h.shape)))?;
         let got = bytes.len() - h.data_offset;
         if got < want {
-            return Err(bad(format!("truncated: shape {:?} of {} needs {want} data bytes, the file has {got}", h.shape, h.descr)));
+            return Err(bad(format!(
+                "truncated: shape {:?} of {} needs {want} data bytes, the file has {got}",
+                h.shape, h.descr
+            )));
         }
         if got > want {
             return Err(bad(format!("{} bytes after the data of shape {:?} (corrupt file?)", got - want, h.shape)));
@@ -356,7 +374,8 @@ pub fn write_npz(path: &Path, arrays: &[(&str, NpyArray)]) -> Result<(), NpyErro
     for (name, array) in arrays {
         let name = format!("{name}.npy");
         let npy = array.to_npy_bytes();
-        let entry = zip::ZipEntry { name: &name, size: npy.len() as u64, crc: zip::crc32(&npy), offset: out.len() as u64 };
+        let entry =
+            zip::ZipEntry { name: &name, size: npy.len() as u64, crc: zip::crc32(&npy), offset: out.len() as u64 };
         // Everything so far, this entry, its central header and the end record must fit in u32.
         let size = out.len() as u64 + entry.stored_len() + central.len() as u64 + 46 + name.len() as u64 + 22;
         if size > zip::MAX_ZIP {
@@ -374,15 +393,18 @@ pub fn write_npz(path: &Path, arrays: &[(&str, NpyArray)]) -> Result<(), NpyErro
 
 /// Read a `.npy` file.
 pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
-    let bytes = std::fs::read(path).map_err(|source| NpyError::Io { path: path.to_path_buf(), what: "cannot read", source })?;
+    let bytes =
+        std::fs::read(path).map_err(|source| NpyError::Io { path: path.to_path_buf(), what: "cannot read", source })?;
     NpyArray::from_npy_bytes(&bytes, &path.display().to_string())
 }
 
 /// Read an `.npz` file (stored or deflated entries): `(name, array)` in archive order, the
 /// name without its `.npy` suffix (as `np.load(...)[name]`).
 pub fn read_npz(path: &Path) -> Result<Vec<(String, NpyArray)>, NpyError> {
-    let bytes = std::fs::read(path).map_err(|source| NpyError::Io { path: path.to_path_buf(), what: "cannot read", source })?;
-    let entries = zip::unzip(&bytes).map_err(|problem| NpyError::Format { file: path.display().to_string(), problem })?;
+    let bytes =
+        std::fs::read(path).map_err(|source| NpyError::Io { path: path.to_path_buf(), what: "cannot read", source })?;
+    let entries =
+        zip::unzip(&bytes).map_err(|problem| NpyError::Format { file: path.display().to_string(), problem })?;
     entries
         .into_iter()
         .map(|(name, data)| {

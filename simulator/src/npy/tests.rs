@@ -42,15 +42,18 @@ fn every_dtype_round_trips_in_1d_and_2d() {
         let empty = NpyArray::new(&[0, 17], NpyData::from_le_bytes(data.dtype(), &[])).unwrap();
         assert_eq!(NpyArray::from_npy_bytes(&empty.to_npy_bytes(), "e").unwrap(), empty);
     }
-    let names: Vec<String> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let names: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert!(names.iter().all(|n| !n.starts_with('.')), "no temporary files remain: {names:?}");
 }
 
 #[test]
 fn npz_round_trips_every_dtype() {
     let dir = temp_dir("npz");
-    let arrays: Vec<(String, NpyArray)> =
-        samples().into_iter().map(|d| (format!("{:?}", d.dtype()).to_lowercase(), NpyArray::new(&[3, 2], d).unwrap())).collect();
+    let arrays: Vec<(String, NpyArray)> = samples()
+        .into_iter()
+        .map(|d| (format!("{:?}", d.dtype()).to_lowercase(), NpyArray::new(&[3, 2], d).unwrap()))
+        .collect();
     let named: Vec<(&str, NpyArray)> = arrays.iter().map(|(n, a)| (n.as_str(), a.clone())).collect();
     let path = dir.join("sub/all.npz");
     write_npz(&path, &named).unwrap();
@@ -116,7 +119,11 @@ fn bad_files_are_clear_errors() {
     let three_d = error_of(&with_dict("{'descr': '<f8', 'fortran_order': False, 'shape': (1, 2, 3), }", &data));
     assert!(three_d.contains("3 dimensions"), "{three_d}");
     // Single-byte dtypes have no byte order: '>u1' and '|u1' are the same.
-    assert!(NpyArray::from_npy_bytes(&with_dict("{'descr': '>u1', 'fortran_order': False, 'shape': (48,), }", &data), "f").is_ok());
+    assert!(NpyArray::from_npy_bytes(
+        &with_dict("{'descr': '>u1', 'fortran_order': False, 'shape': (48,), }", &data),
+        "f"
+    )
+    .is_ok());
 }
 
 #[test]

@@ -168,11 +168,18 @@ pub(crate) fn unzip(bytes: &[u8]) -> Result<Vec<(String, Vec<u8>)>, String> {
     let mut out = Vec::with_capacity(count as usize);
     for i in 0..count {
         if u32_at(c)? != CENTRAL_SIG as u64 {
-            return Err(format!("central directory entry {i} at byte {c} has a bad signature (corrupt or truncated zip)"));
+            return Err(format!(
+                "central directory entry {i} at byte {c} has a bad signature (corrupt or truncated zip)"
+            ));
         }
         let (flags, method, crc) = (u16_at(c + 8)?, u16_at(c + 10)?, u32_at(c + 16)?);
-        let (mut csize, mut usize_, name_len, extra_len, comment_len) =
-            (u32_at(c + 20)?, u32_at(c + 24)?, u16_at(c + 28)? as usize, u16_at(c + 30)? as usize, u16_at(c + 32)? as usize);
+        let (mut csize, mut usize_, name_len, extra_len, comment_len) = (
+            u32_at(c + 20)?,
+            u32_at(c + 24)?,
+            u16_at(c + 28)? as usize,
+            u16_at(c + 30)? as usize,
+            u16_at(c + 32)? as usize,
+        );
         let mut local = u32_at(c + 42)?;
         let name_bytes = bytes.get(c + 46..c + 46 + name_len).ok_or("truncated zip (central directory)")?;
         let name = String::from_utf8_lossy(name_bytes).into_owned();
@@ -200,18 +207,24 @@ pub(crate) fn unzip(bytes: &[u8]) -> Result<Vec<(String, Vec<u8>)>, String> {
             return Err(format!("entry {name}: bad local header at byte {local} (corrupt zip)"));
         }
         let start = local + 30 + u16_at(local + 26)? as usize + u16_at(local + 28)? as usize;
-        let raw = bytes
-            .get(start..start.saturating_add(csize as usize))
-            .ok_or_else(|| format!("entry {name} is truncated ({csize} bytes expected at byte {start}, the file has {})", bytes.len()))?;
+        let raw = bytes.get(start..start.saturating_add(csize as usize)).ok_or_else(|| {
+            format!("entry {name} is truncated ({csize} bytes expected at byte {start}, the file has {})", bytes.len())
+        })?;
         let data = match method {
             0 => raw.to_vec(),
             8 => {
                 // Deflate expands at most ~1032x: do not trust a huge declared size up front.
                 let mut d = Vec::with_capacity((usize_ as usize).min(raw.len().saturating_mul(1032)));
-                flate2::read::DeflateDecoder::new(raw).read_to_end(&mut d).map_err(|e| format!("entry {name}: bad deflate stream: {e}"))?;
+                flate2::read::DeflateDecoder::new(raw)
+                    .read_to_end(&mut d)
+                    .map_err(|e| format!("entry {name}: bad deflate stream: {e}"))?;
                 d
             }
-            m => return Err(format!("entry {name} uses zip compression method {m}; only stored (0) and deflate (8) are supported")),
+            m => {
+                return Err(format!(
+                    "entry {name} uses zip compression method {m}; only stored (0) and deflate (8) are supported"
+                ))
+            }
         };
         if data.len() as u64 != usize_ {
             return Err(format!("entry {name} has {} bytes, its header says {usize_}", data.len()));

@@ -120,10 +120,16 @@ mod tests {
         let rounding = image(20, 20, 0.0, 1e-7, 0);
         assert!(max_abs_z(&tile_z(&rounding, &gt, 20)) < 1.0);
         // relMSE by hand for a constant offset: mean of 1e-4 / (gt^2 + 1e-2)
-        let want: f64 = gt.pixels.iter().flat_map(|p| p.to_array()).map(|g| {
-            let off = ((g + 0.01) - g) as f64; // the f32 round trip, as in the image
-            off * off / ((g as f64).powi(2) + 1e-2)
-        }).sum::<f64>() / (3.0 * 400.0);
+        let want: f64 = gt
+            .pixels
+            .iter()
+            .flat_map(|p| p.to_array())
+            .map(|g| {
+                let off = ((g + 0.01) - g) as f64; // the f32 round trip, as in the image
+                off * off / ((g as f64).powi(2) + 1e-2)
+            })
+            .sum::<f64>()
+            / (3.0 * 400.0);
         assert!((rel_mse(&off, &gt) - want).abs() < 1e-12);
     }
 }

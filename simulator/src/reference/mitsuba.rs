@@ -55,11 +55,7 @@ pub fn run(python: &Path, scene_json: &Path, spp: u32, seed: u32, variant: &str,
         .with_context(|| format!("cannot run {}", python.display()))?;
     let stdout = String::from_utf8_lossy(&output.stdout);
     if !output.status.success() {
-        bail!(
-            "render.py failed on {}:\n{stdout}\n{}",
-            scene_json.display(),
-            String::from_utf8_lossy(&output.stderr)
-        );
+        bail!("render.py failed on {}:\n{stdout}\n{}", scene_json.display(), String::from_utf8_lossy(&output.stderr));
     }
     let line = stdout.lines().rev().find(|l| l.starts_with('{')).context("render.py printed no JSON line")?;
     let v: serde_json::Value = serde_json::from_str(line).context("render.py JSON line")?;

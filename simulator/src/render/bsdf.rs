@@ -466,10 +466,8 @@ mod tests {
 
     #[test]
     fn chi2_sampling_matches_pdf() {
-        let cases: Vec<(&str, Bsdf, f32)> = materials()
-            .into_iter()
-            .flat_map(|(n, b)| THETA_DEG.iter().map(move |&t| (n, b, t)))
-            .collect();
+        let cases: Vec<(&str, Bsdf, f32)> =
+            materials().into_iter().flat_map(|(n, b)| THETA_DEG.iter().map(move |&t| (n, b, t))).collect();
         // Bonferroni: the configured significance shared over all cases
         let alpha = Chi2Config::default().alpha / cases.len() as f64;
         let mut failures = Vec::new();
@@ -478,7 +476,12 @@ mod tests {
             let wo = wo_at(*theta);
             // an independent sample stream per case
             let (r, warped) = chi2_case(b, wo, alpha, SEED_BASE + i as u64);
-            eprintln!("{name:>20} theta={theta:>4} warped={warped:>5} p={:.4} dof={} int-acc={:+.5}", r.p_value, r.dof, r.pdf_integral - r.accepted);
+            eprintln!(
+                "{name:>20} theta={theta:>4} warped={warped:>5} p={:.4} dof={} int-acc={:+.5}",
+                r.p_value,
+                r.dof,
+                r.pdf_integral - r.accepted
+            );
             p_min = p_min.min(r.p_value);
             p_max = p_max.max(r.p_value);
             let integral_ok = (r.pdf_integral - r.accepted).abs() < 5e-3;
@@ -555,11 +558,8 @@ mod tests {
                     // doc): the strict bound holds for metals at every angle and for everything
                     // up to 30 degrees; beyond that the lobes' own bounds apply, diffuse
                     // <= (1 - m)(1 - 0.04 s) and specular <= F90 = 1 (so at most 1.96)
-                    let bound = if metallic == 1.0 || theta <= 30.0 {
-                        1.0
-                    } else {
-                        (1.0 - metallic) * (1.0 - 0.04) + 1.0
-                    };
+                    let bound =
+                        if metallic == 1.0 || theta <= 30.0 { 1.0 } else { (1.0 - metallic) * (1.0 - 0.04) + 1.0 };
                     assert!(
                         (a - 3.0 * sigma).max_element() <= bound,
                         "m={metallic} r={roughness} theta={theta}: albedo {a} +- {sigma} > {bound}"
@@ -727,7 +727,8 @@ mod tests {
                 let wi = Vec3::new(-wo.x, -wo.y, wo.z);
                 assert!(b.eval(wo, wi).is_finite() && b.pdf(wo, wi).is_finite(), "{b:?} {wo}");
                 // corner random numbers
-                for (ul, u) in [(0.0, Vec2::ZERO), (0.999_999_9, Vec2::splat(0.999_999_9)), (0.5, Vec2::new(0.0, 1.0))] {
+                for (ul, u) in [(0.0, Vec2::ZERO), (0.999_999_9, Vec2::splat(0.999_999_9)), (0.5, Vec2::new(0.0, 1.0))]
+                {
                     if let Some(s) = b.sample(wo, ul, u) {
                         assert!(s.weight.is_finite() && s.pdf > 0.0, "{b:?} {wo}: {s:?}");
                     }

@@ -128,14 +128,7 @@ pub fn chi2_test(
     let dof = dof.saturating_sub(1).max(1);
     let p_value = if impossible { 0.0 } else { chi2_sf(chi2, dof as f64) };
     let acc_rate = accepted as f64 / cfg.n_samples as f64;
-    Chi2Result {
-        chi2,
-        dof,
-        p_value,
-        pdf_integral: integral,
-        accepted: acc_rate,
-        passed: p_value >= cfg.alpha,
-    }
+    Chi2Result { chi2, dof, p_value, pdf_integral: integral, accepted: acc_rate, passed: p_value >= cfg.alpha }
 }
 
 /// Survival function of the chi-square distribution: P(X > x) for `k` degrees of freedom.

@@ -81,7 +81,9 @@ fn diffuse_plane_under_constant_environment_has_its_albedo() {
     mat.double_sided = true;
     let scene = Scene { mesh, materials: vec![mat], environment: Environment::Constant(Vec3::ONE), ..Scene::default() };
     let r = Renderer::new(&scene);
-    for (eye, target) in [(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, -0.2)), (Vec3::new(0.0, -1.0, 0.0), Vec3::new(0.0, 0.0, 0.2))] {
+    for (eye, target) in
+        [(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, -0.2)), (Vec3::new(0.0, -1.0, 0.0), Vec3::new(0.0, 0.0, 0.2))]
+    {
         let mut st = settings(256, 3);
         st.camera = Camera::look_at(eye, target, Vec3::Z, 0.3);
         let m = r.render(&st, None).mean();

@@ -155,7 +155,8 @@ impl Lights {
             area.push(0.0);
         }
         // equal shares for each infinite light and for the bounded group; power within the group
-        let bounded_total: f32 = power.iter().zip(&infinite).filter(|(p, &inf)| !inf && **p > 0.0).map(|(p, _)| *p).sum();
+        let bounded_total: f32 =
+            power.iter().zip(&infinite).filter(|(p, &inf)| !inf && **p > 0.0).map(|(p, _)| *p).sum();
         let n_infinite = infinite.iter().zip(&power).filter(|(&inf, p)| inf && **p > 0.0).count();
         let shares = n_infinite as f32 + if bounded_total > 0.0 { 1.0 } else { 0.0 };
         let power: Vec<f32> = power
@@ -294,8 +295,8 @@ mod tests {
         let mut mesh = TriangleMesh::default();
         let tris = [
             ([Vec3::new(-1.0, 2.0, -1.0), Vec3::new(1.0, 2.0, -1.0), Vec3::new(0.0, 2.0, 1.0)], 0u32), // ceiling, faces up
-            ([Vec3::new(2.0, -1.0, 0.5), Vec3::new(2.0, 1.0, 0.5), Vec3::new(2.0, 0.0, -1.5)], 1),    // +x wall, two-sided
-            ([Vec3::new(-0.5, -3.0, 0.0), Vec3::new(0.0, -3.0, 0.5), Vec3::new(0.5, -3.0, 0.0)], 2),  // small, below
+            ([Vec3::new(2.0, -1.0, 0.5), Vec3::new(2.0, 1.0, 0.5), Vec3::new(2.0, 0.0, -1.5)], 1), // +x wall, two-sided
+            ([Vec3::new(-0.5, -3.0, 0.0), Vec3::new(0.0, -3.0, 0.5), Vec3::new(0.5, -3.0, 0.0)], 2), // small, below
         ];
         for (i, (c, m)) in tris.iter().enumerate() {
             for p in c {
@@ -361,7 +362,8 @@ mod tests {
             let [a, b, c] = scene.mesh.corners(i);
             0.5 * (b - a).cross(c - a).length()
         };
-        let power: Vec<f32> = (0..3).map(|i| 2.0 * std::f32::consts::PI * area(i) * luminance(scene.materials[i].emission)).collect();
+        let power: Vec<f32> =
+            (0..3).map(|i| 2.0 * std::f32::consts::PI * area(i) * luminance(scene.materials[i].emission)).collect();
         let total: f32 = power.iter().sum();
         for (i, p) in power.iter().enumerate() {
             let want = 0.5 * p / total;

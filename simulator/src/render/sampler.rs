@@ -210,7 +210,10 @@ mod tests {
     #[test]
     fn direction_numbers_match_the_published_table() {
         // Burley 2020 lists dimension 1 as 0x80000000, 0xc0000000, 0xa0000000, 0xf0000000, ...
-        assert_eq!(&SOBOL[1][..8], &[0x8000_0000, 0xc000_0000, 0xa000_0000, 0xf000_0000, 0x8800_0000, 0xcc00_0000, 0xaa00_0000, 0xff00_0000]);
+        assert_eq!(
+            &SOBOL[1][..8],
+            &[0x8000_0000, 0xc000_0000, 0xa000_0000, 0xf000_0000, 0x8800_0000, 0xcc00_0000, 0xaa00_0000, 0xff00_0000]
+        );
         assert_eq!(SOBOL[1][31], 0xffff_ffff);
         // dimension 2 (x^2 + x + 1, m = 1, 3): v1 = 1/2, v2 = 3/4, v3 = v1 ^ v1/4 ^ v2 = 3/8, so in
         // natural (not Gray-code) order the points are 0, v1, v2, v1^v2, v3, v1^v3

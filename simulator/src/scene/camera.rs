@@ -23,12 +23,8 @@ impl Camera {
         let forward = (target - origin).normalize();
         let right = forward.cross(up).normalize();
         let true_up = right.cross(forward);
-        let to_world = Mat4::from_cols(
-            right.extend(0.0),
-            true_up.extend(0.0),
-            (-forward).extend(0.0),
-            origin.extend(1.0),
-        );
+        let to_world =
+            Mat4::from_cols(right.extend(0.0), true_up.extend(0.0), (-forward).extend(0.0), origin.extend(1.0));
         Camera { name: "look_at".into(), to_world, yfov }
     }
 

@@ -154,9 +154,9 @@ fn resolve_camera(c: &CameraDesc, path: &Path) -> Result<Camera, SceneError> {
     let origin = finite3(c.origin, path, "camera.origin")?;
     let target = finite3(c.target, path, "camera.target")?;
     let up = finite3(c.up, path, "camera.up")?;
-    let forward = (target - origin).try_normalize().ok_or_else(|| {
-        SceneError::invalid(path, "camera.target", "must differ from camera.origin")
-    })?;
+    let forward = (target - origin)
+        .try_normalize()
+        .ok_or_else(|| SceneError::invalid(path, "camera.target", "must differ from camera.origin"))?;
     if forward.cross(up).length() < 1e-6 * up.length() || up.length() == 0.0 {
         return Err(SceneError::invalid(path, "camera.up", "must be non-zero and not parallel to the view direction"));
     }
@@ -201,7 +201,11 @@ fn resolve_environment(env: &EnvironmentDesc, folder: &Path, path: &Path) -> Res
         }
         EnvironmentDesc::Map { file, scale, rotate_y } => {
             if !(scale.is_finite() && *scale >= 0.0) {
-                return Err(SceneError::invalid(path, "environment.scale", format!("{scale} must be finite and non-negative")));
+                return Err(SceneError::invalid(
+                    path,
+                    "environment.scale",
+                    format!("{scale} must be finite and non-negative"),
+                ));
             }
             if !rotate_y.is_finite() {
                 return Err(SceneError::invalid(path, "environment.rotate_y", "must be a finite angle in degrees"));
@@ -287,11 +291,16 @@ radiance = [1.0, 0.5, 0.25]
             std::fs::write(&p, text).unwrap();
             load(&p).unwrap_err().to_string()
         };
-        let cam = |extra: &str| format!("scene = \"tri.obj\"\n[camera]\norigin = [0.0, 0.0, 1.0]\ntarget = [0.0, 0.0, 0.0]\n{extra}\n");
+        let cam = |extra: &str| {
+            format!("scene = \"tri.obj\"\n[camera]\norigin = [0.0, 0.0, 1.0]\ntarget = [0.0, 0.0, 0.0]\n{extra}\n")
+        };
 
         let e = run("unknown.toml", &cam("fov = 40.0\naspect = 1.0\nfocal = 3.0"));
         assert!(e.contains("unknown.toml") && e.contains("focal"), "{e}");
-        let e = run("unknown_env.toml", "scene = \"tri.obj\"\n[environment]\ntype = \"constant\"\nradiance = [1.0, 1.0, 1.0]\nfile = \"x\"\n");
+        let e = run(
+            "unknown_env.toml",
+            "scene = \"tri.obj\"\n[environment]\ntype = \"constant\"\nradiance = [1.0, 1.0, 1.0]\nfile = \"x\"\n",
+        );
         assert!(e.contains("file"), "{e}");
         let e = run("fov.toml", &cam("fov = 180.0\naspect = 1.0"));
         assert!(e.contains("camera.fov"), "{e}");
@@ -299,9 +308,11 @@ radiance = [1.0, 0.5, 0.25]
         assert!(e.contains("camera.fov"), "{e}");
         let e = run("aspect.toml", &cam("fov = 40.0"));
         assert!(e.contains("camera.aspect"), "{e}");
-        let e = run("neg.toml", "scene = \"tri.obj\"\n[environment]\ntype = \"constant\"\nradiance = [1.0, -1.0, 1.0]\n");
+        let e =
+            run("neg.toml", "scene = \"tri.obj\"\n[environment]\ntype = \"constant\"\nradiance = [1.0, -1.0, 1.0]\n");
         assert!(e.contains("environment.radiance"), "{e}");
-        let e = run("nan.toml", "scene = \"tri.obj\"\n[environment]\ntype = \"constant\"\nradiance = [nan, 1.0, 1.0]\n");
+        let e =
+            run("nan.toml", "scene = \"tri.obj\"\n[environment]\ntype = \"constant\"\nradiance = [nan, 1.0, 1.0]\n");
         assert!(e.contains("environment.radiance"), "{e}");
         let e = run("syntax.toml", "scene = \"tri.obj\n");
         assert!(e.contains("syntax.toml") && e.contains("line 1"), "{e}");

@@ -234,9 +234,7 @@ impl EnvMap {
         for y in 0..h {
             let sin_theta = (PI * (y as f32 + 0.5) / h as f32).sin();
             for x in 0..w {
-                let blurred: f32 = (0..3)
-                    .map(|k| K[k] * blur_u[(y + k).saturating_sub(1).min(h - 1) * w + x])
-                    .sum();
+                let blurred: f32 = (0..3).map(|k| K[k] * blur_u[(y + k).saturating_sub(1).min(h - 1) * w + x]).sum();
                 weights[y * w + x] = blurred * sin_theta;
             }
         }
@@ -260,10 +258,8 @@ impl EnvMap {
         let mut sum = 0.0f64;
         for y in 0..h {
             let sin_theta = (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
-            let row: f64 = self.texels[y * w..(y + 1) * w]
-                .iter()
-                .map(|&t| crate::render::lights::luminance(t) as f64)
-                .sum();
+            let row: f64 =
+                self.texels[y * w..(y + 1) * w].iter().map(|&t| crate::render::lights::luminance(t) as f64).sum();
             sum += row * sin_theta * d_omega;
         }
         (sum * self.scale as f64) as f32
@@ -514,8 +510,10 @@ mod tests {
         let e = load_map(&dir.join("none.exr"), 1.0, Mat3::IDENTITY).unwrap_err().to_string();
         assert!(e.contains("none.exr"), "{e}");
         let bad = dir.join("nan.exr");
-        exr::prelude::write_rgb_file(&bad, 4, 2, |x, y| (if (x, y) == (3, 1) { f32::NAN } else { 1.0 }, 0.0f32, 0.0f32))
-            .unwrap();
+        exr::prelude::write_rgb_file(&bad, 4, 2, |x, y| {
+            (if (x, y) == (3, 1) { f32::NAN } else { 1.0 }, 0.0f32, 0.0f32)
+        })
+        .unwrap();
         let e = load_map(&bad, 1.0, Mat3::IDENTITY).unwrap_err().to_string();
         assert!(e.contains("nan.exr") && e.contains("pixel (x 3, y 1)"), "{e}");
         let neg = dir.join("neg.exr");

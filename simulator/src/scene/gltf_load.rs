@@ -79,7 +79,8 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let buffers = load_buffers(path, base, &doc, blob)?;
 
     let mut scene = Scene { warnings, source: path.to_path_buf(), ..Default::default() };
-    scene.materials = gltf_material::load_materials(path, base, &doc, &buffers, &mut scene.textures, &mut scene.warnings)?;
+    scene.materials =
+        gltf_material::load_materials(path, base, &doc, &buffers, &mut scene.textures, &mut scene.warnings)?;
     let root = doc.default_scene().or_else(|| doc.scenes().next()).ok_or_else(|| {
         SceneError::invalid(path, "scenes", "the file defines no scene; add a scene that lists the root nodes")
     })?;

@@ -15,9 +15,9 @@
 pub mod camera;
 pub mod description;
 pub mod environment;
-pub mod gltf_load;
 #[cfg(test)]
 mod gltf_fixture;
+pub mod gltf_load;
 mod gltf_material;
 mod gltf_mesh;
 pub mod obj_load;

@@ -177,7 +177,11 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let material = match m.material_id {
             Some(id) if id < scene.materials.len() => id as u32,
             _ => *default_material.get_or_insert_with(|| {
-                scene.materials.push(Material { name: "default (no usemtl)".into(), specular: 0.0, ..Default::default() });
+                scene.materials.push(Material {
+                    name: "default (no usemtl)".into(),
+                    specular: 0.0,
+                    ..Default::default()
+                });
                 scene.materials.len() as u32 - 1
             }),
         };

@@ -75,14 +75,7 @@ impl Texture {
                 }
             })
             .collect();
-        Texture {
-            name: name.to_string(),
-            width,
-            height,
-            texels,
-            wrap_u: WrapMode::Repeat,
-            wrap_v: WrapMode::Repeat,
-        }
+        Texture { name: name.to_string(), width, height, texels, wrap_u: WrapMode::Repeat, wrap_v: WrapMode::Repeat }
     }
 
     /// Decode an image file (PNG or JPEG). `element` names the referring element for messages.

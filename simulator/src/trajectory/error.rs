@@ -33,9 +33,6 @@ pub enum TrajectoryError {
 impl TrajectoryError {
     /// Shorthand for [`TrajectoryError::Config`].
     pub fn config(field: impl Into<String>, message: impl Into<String>) -> Self {
-        TrajectoryError::Config {
-            field: field.into(),
-            message: message.into(),
-        }
+        TrajectoryError::Config { field: field.into(), message: message.into() }
     }
 }

@@ -72,26 +72,15 @@ impl FastMotion {
 
     /// The generated key poses (times from 0 s), before validation.
     pub fn key_configs(&self) -> Result<Vec<KeyPoseConfig>, TrajectoryError> {
-        let bad = |field: &str, message: String| {
-            TrajectoryError::config(format!("fast_motion.{field}"), message)
-        };
+        let bad = |field: &str, message: String| TrajectoryError::config(format!("fast_motion.{field}"), message);
         if !(self.radius > 0.0 && self.radius.is_finite()) {
-            return Err(bad(
-                "radius",
-                format!("{} is not a positive distance in metres", self.radius),
-            ));
+            return Err(bad("radius", format!("{} is not a positive distance in metres", self.radius)));
         }
         if !(self.duration > 0.0 && self.duration.is_finite()) {
-            return Err(bad(
-                "duration",
-                format!("{} is not a positive time in seconds", self.duration),
-            ));
+            return Err(bad("duration", format!("{} is not a positive time in seconds", self.duration)));
         }
         if self.keys < 2 {
-            return Err(bad(
-                "keys",
-                format!("{} key(s); generate at least 2", self.keys),
-            ));
+            return Err(bad("keys", format!("{} key(s); generate at least 2", self.keys)));
         }
         let height = self.height.unwrap_or(0.3 * self.radius);
         let bob = self.bob.unwrap_or(0.1 * self.radius);
@@ -114,11 +103,7 @@ impl FastMotion {
                 let [tx, ty, tz] = self.target;
                 KeyPoseConfig {
                     t: u * self.duration,
-                    position: [
-                        tx + self.radius * phi.sin(),
-                        ty + y,
-                        tz + self.radius * phi.cos(),
-                    ],
+                    position: [tx + self.radius * phi.sin(), ty + y, tz + self.radius * phi.cos()],
                     look_at: Some(self.target),
                     up: None,
                     quaternion: None,
@@ -162,24 +147,12 @@ mod tests {
     #[test]
     fn fast_motion_errors_name_the_field() {
         let mut p = FastMotion::new([0.0; 3], 0.0);
-        assert!(p
-            .trajectory()
-            .unwrap_err()
-            .to_string()
-            .contains("fast_motion.radius"));
+        assert!(p.trajectory().unwrap_err().to_string().contains("fast_motion.radius"));
         p.radius = 1.0;
         p.keys = 1;
-        assert!(p
-            .trajectory()
-            .unwrap_err()
-            .to_string()
-            .contains("fast_motion.keys"));
+        assert!(p.trajectory().unwrap_err().to_string().contains("fast_motion.keys"));
         p.keys = 9;
         p.duration = -1.0;
-        assert!(p
-            .trajectory()
-            .unwrap_err()
-            .to_string()
-            .contains("fast_motion.duration"));
+        assert!(p.trajectory().unwrap_err().to_string().contains("fast_motion.duration"));
     }
 }

@@ -32,15 +32,8 @@ impl Pose {
     /// The renderer's camera for this pose with full vertical field of view `yfov` (rad):
     /// `to_world` = rotation then translation, no scale (rounded to f32).
     pub fn camera(&self, yfov: f32) -> Camera {
-        let to_world = Mat4::from_rotation_translation(
-            self.rotation.as_quat().normalize(),
-            self.position.as_vec3(),
-        );
-        Camera {
-            name: "trajectory".into(),
-            to_world,
-            yfov,
-        }
+        let to_world = Mat4::from_rotation_translation(self.rotation.as_quat().normalize(), self.position.as_vec3());
+        Camera { name: "trajectory".into(), to_world, yfov }
     }
 
     /// Camera-to-world rotation as a 3x3 matrix with columns (right, up, backward).
@@ -81,16 +74,10 @@ impl Trajectory {
     /// strictly increasing times.
     pub fn new(keys: Vec<KeyPose>) -> Result<Trajectory, TrajectoryError> {
         if keys.len() < 2 {
-            return Err(TrajectoryError::config(
-                "keys",
-                "a trajectory needs at least 2 keys",
-            ));
+            return Err(TrajectoryError::config("keys", "a trajectory needs at least 2 keys"));
         }
         if let Some(i) = (1..keys.len()).find(|&i| keys[i].t_ns <= keys[i - 1].t_ns) {
-            return Err(TrajectoryError::config(
-                format!("keys[{i}].t"),
-                "times must strictly increase",
-            ));
+            return Err(TrajectoryError::config(format!("keys[{i}].t"), "times must strictly increase"));
         }
         let n = keys.len();
         let h = |i: usize| (keys[i + 1].t_ns - keys[i].t_ns) as f64 * 1e-9;
@@ -135,21 +122,14 @@ impl Trajectory {
     /// a sampler that leaves the keys has a bug worth seeing.
     pub fn pose_at(&self, t_ns: i64) -> Result<Pose, TrajectoryError> {
         if t_ns < self.start_ns() || t_ns > self.end_ns() {
-            return Err(TrajectoryError::OutOfRange {
-                t_ns,
-                start_ns: self.start_ns(),
-                end_ns: self.end_ns(),
-            });
+            return Err(TrajectoryError::OutOfRange { t_ns, start_ns: self.start_ns(), end_ns: self.end_ns() });
         }
         // first key strictly after t; the segment starts one before it
         let next = self.keys.partition_point(|k| k.t_ns <= t_ns);
         let i = next - 1;
         let k0 = &self.keys[i];
         if k0.t_ns == t_ns {
-            return Ok(Pose {
-                rotation: k0.rotation,
-                position: k0.position,
-            });
+            return Ok(Pose { rotation: k0.rotation, position: k0.position });
         }
         let k1 = &self.keys[i + 1];
         let h = (k1.t_ns - k0.t_ns) as f64 * 1e-9;
@@ -160,10 +140,8 @@ impl Trajectory {
         let h10 = s3 - 2.0 * s2 + s;
         let h01 = -2.0 * s3 + 3.0 * s2;
         let h11 = s3 - s2;
-        let position = h00 * k0.position
-            + h10 * h * self.tangents[i]
-            + h01 * k1.position
-            + h11 * h * self.tangents[i + 1];
+        let position =
+            h00 * k0.position + h10 * h * self.tangents[i] + h01 * k1.position + h11 * h * self.tangents[i + 1];
         let rotation = slerp_shortest(k0.rotation, k1.rotation, s);
         Ok(Pose { rotation, position })
     }
@@ -176,11 +154,7 @@ mod tests {
     const S: i64 = 1_000_000_000;
 
     fn key(t_ns: i64, position: DVec3, rotation: DQuat) -> KeyPose {
-        KeyPose {
-            t_ns,
-            position,
-            rotation,
-        }
+        KeyPose { t_ns, position, rotation }
     }
 
     fn close(a: DVec3, b: DVec3, tol: f64) -> bool {
@@ -195,17 +169,9 @@ mod tests {
     fn curvy() -> Trajectory {
         Trajectory::new(vec![
             key(0, DVec3::new(0.0, 0.0, 0.0), DQuat::IDENTITY),
-            key(
-                S / 4,
-                DVec3::new(1.0, 0.5, 0.0),
-                DQuat::from_rotation_y(0.3),
-            ),
+            key(S / 4, DVec3::new(1.0, 0.5, 0.0), DQuat::from_rotation_y(0.3)),
             key(S, DVec3::new(2.0, -0.5, 1.0), DQuat::from_rotation_x(0.4)),
-            key(
-                S + S / 10,
-                DVec3::new(2.5, 0.0, 1.5),
-                -DQuat::from_rotation_z(0.2),
-            ),
+            key(S + S / 10, DVec3::new(2.5, 0.0, 1.5), -DQuat::from_rotation_z(0.2)),
         ])
         .unwrap()
     }
@@ -223,29 +189,13 @@ mod tests {
     #[test]
     fn midpoint_of_90_degree_yaw_is_45_degrees() {
         let q1 = DQuat::from_rotation_y(std::f64::consts::FRAC_PI_2);
-        let traj = Trajectory::new(vec![
-            key(0, DVec3::ZERO, DQuat::IDENTITY),
-            key(S, DVec3::X, q1),
-        ])
-        .unwrap();
+        let traj = Trajectory::new(vec![key(0, DVec3::ZERO, DQuat::IDENTITY), key(S, DVec3::X, q1)]).unwrap();
         let mid = traj.pose_at(S / 2).unwrap();
         let want = DQuat::from_rotation_y(std::f64::consts::FRAC_PI_4);
-        assert!(
-            same_rotation(mid.rotation, want, 1e-14),
-            "{:?}",
-            mid.rotation
-        );
+        assert!(same_rotation(mid.rotation, want, 1e-14), "{:?}", mid.rotation);
         // also with the end key given as -q (same rotation, other hemisphere)
-        let traj = Trajectory::new(vec![
-            key(0, DVec3::ZERO, DQuat::IDENTITY),
-            key(S, DVec3::X, -q1),
-        ])
-        .unwrap();
-        assert!(same_rotation(
-            traj.pose_at(S / 2).unwrap().rotation,
-            want,
-            1e-14
-        ));
+        let traj = Trajectory::new(vec![key(0, DVec3::ZERO, DQuat::IDENTITY), key(S, DVec3::X, -q1)]).unwrap();
+        assert!(same_rotation(traj.pose_at(S / 2).unwrap().rotation, want, 1e-14));
     }
 
     #[test]
@@ -270,10 +220,7 @@ mod tests {
         // uneven key spacing, constant velocity v along a straight line
         let v = DVec3::new(1.0, -2.0, 0.5);
         let times = [0, S / 10, S / 2, S, 3 * S];
-        let keys = times
-            .iter()
-            .map(|&t| key(t, v * (t as f64 * 1e-9), DQuat::IDENTITY))
-            .collect();
+        let keys = times.iter().map(|&t| key(t, v * (t as f64 * 1e-9), DQuat::IDENTITY)).collect();
         let traj = Trajectory::new(keys).unwrap();
         for k in 0..=300 {
             let t = k * S / 100;
@@ -296,11 +243,7 @@ mod tests {
         let dt = 10_000; // 10 us
         for k in &traj.keys()[1..traj.keys().len() - 1] {
             let (l, r) = one_sided_velocities(|t| traj.pose_at(t).unwrap().position, k.t_ns, dt);
-            assert!(
-                close(l, r, 1e-2),
-                "key at {} ns: left {l} right {r}",
-                k.t_ns
-            );
+            assert!(close(l, r, 1e-2), "key at {} ns: left {l} right {r}", k.t_ns);
         }
         // the same check fails for a C0 piecewise-linear interpolation of the same keys
         let lin = |t: i64| {
@@ -311,10 +254,7 @@ mod tests {
         };
         let k = traj.keys()[1];
         let (l, r) = one_sided_velocities(lin, k.t_ns, dt);
-        assert!(
-            !close(l, r, 1e-2),
-            "piecewise-linear should have a velocity jump: {l} vs {r}"
-        );
+        assert!(!close(l, r, 1e-2), "piecewise-linear should have a velocity jump: {l} vs {r}");
     }
 
     #[test]
@@ -323,37 +263,21 @@ mod tests {
         // uniform Catmull-Rom tangent (d_{i-1} + d_i) / 2 would be off for uneven spacing.
         let a = DVec3::new(0.5, -1.0, 2.0);
         let times = [0, S / 5, S, 3 * S / 2];
-        let keys = times
-            .iter()
-            .map(|&t| key(t, a * (t as f64 * 1e-9).powi(2), DQuat::IDENTITY))
-            .collect();
+        let keys = times.iter().map(|&t| key(t, a * (t as f64 * 1e-9).powi(2), DQuat::IDENTITY)).collect();
         let traj = Trajectory::new(keys).unwrap();
         for (i, &t_ns) in times.iter().enumerate().take(3).skip(1) {
             let t_s = t_ns as f64 * 1e-9;
-            assert!(
-                close(traj.tangents[i], 2.0 * a * t_s, 1e-12),
-                "key {i}: {}",
-                traj.tangents[i]
-            );
+            assert!(close(traj.tangents[i], 2.0 * a * t_s, 1e-12), "key {i}: {}", traj.tangents[i]);
             let (l, r) = one_sided_velocities(|t| traj.pose_at(t).unwrap().position, t_ns, 1_000);
-            assert!(
-                close(l, 2.0 * a * t_s, 1e-4) && close(r, 2.0 * a * t_s, 1e-4),
-                "{l} {r}"
-            );
+            assert!(close(l, 2.0 * a * t_s, 1e-4) && close(r, 2.0 * a * t_s, 1e-4), "{l} {r}");
         }
     }
 
     #[test]
     fn outside_the_keys_is_an_error() {
         let traj = curvy();
-        assert!(matches!(
-            traj.pose_at(-1),
-            Err(TrajectoryError::OutOfRange { .. })
-        ));
-        assert!(matches!(
-            traj.pose_at(traj.end_ns() + 1),
-            Err(TrajectoryError::OutOfRange { .. })
-        ));
+        assert!(matches!(traj.pose_at(-1), Err(TrajectoryError::OutOfRange { .. })));
+        assert!(matches!(traj.pose_at(traj.end_ns() + 1), Err(TrajectoryError::OutOfRange { .. })));
         assert!(traj.pose_at(traj.end_ns()).is_ok());
         assert_eq!(traj.duration_ns(), S + S / 10);
     }

@@ -114,10 +114,7 @@ pub fn resolve_keys(keys: &[KeyPoseConfig]) -> Result<Vec<KeyPose>, TrajectoryEr
     if keys.len() < 2 {
         return Err(TrajectoryError::config(
             "keys",
-            format!(
-                "{} key(s) given; a trajectory needs at least 2 `[[trajectory.keys]]`",
-                keys.len()
-            ),
+            format!("{} key(s) given; a trajectory needs at least 2 `[[trajectory.keys]]`", keys.len()),
         ));
     }
     let mut out: Vec<KeyPose> = Vec::with_capacity(keys.len());
@@ -126,10 +123,7 @@ pub fn resolve_keys(keys: &[KeyPoseConfig]) -> Result<Vec<KeyPose>, TrajectoryEr
         if !k.t.is_finite() || k.t.abs() > MAX_ABS_T_S {
             return Err(TrajectoryError::config(
                 field("t"),
-                format!(
-                    "{} is not a finite time within +-1e9 s; give the key time in seconds",
-                    k.t
-                ),
+                format!("{} is not a finite time within +-1e9 s; give the key time in seconds", k.t),
             ));
         }
         let t_ns = seconds_to_ns(k.t);
@@ -150,10 +144,7 @@ pub fn resolve_keys(keys: &[KeyPoseConfig]) -> Result<Vec<KeyPose>, TrajectoryEr
         if !finite(&k.position) {
             return Err(TrajectoryError::config(
                 field("position"),
-                format!(
-                    "{:?} has a non-finite coordinate; give [x, y, z] in metres",
-                    k.position
-                ),
+                format!("{:?} has a non-finite coordinate; give [x, y, z] in metres", k.position),
             ));
         }
         let position = DVec3::from_array(k.position);
@@ -184,10 +175,7 @@ pub fn resolve_keys(keys: &[KeyPoseConfig]) -> Result<Vec<KeyPose>, TrajectoryEr
                         format!("{up:?} is not a finite non-zero direction; e.g. up = [0, 1, 0]"),
                     ));
                 }
-                Orientation::LookAt {
-                    target: DVec3::from_array(target),
-                    up: DVec3::from_array(up),
-                }
+                Orientation::LookAt { target: DVec3::from_array(target), up: DVec3::from_array(up) }
             }
             (None, Some(q)) => {
                 if k.up.is_some() {
@@ -226,11 +214,7 @@ pub fn resolve_keys(keys: &[KeyPoseConfig]) -> Result<Vec<KeyPose>, TrajectoryEr
                 )
             })?,
         };
-        out.push(KeyPose {
-            t_ns,
-            position,
-            rotation,
-        });
+        out.push(KeyPose { t_ns, position, rotation });
     }
     Ok(out)
 }
@@ -240,13 +224,7 @@ mod tests {
     use super::*;
 
     fn key(t: f64) -> KeyPoseConfig {
-        KeyPoseConfig {
-            t,
-            position: [0.0, 0.0, 5.0],
-            look_at: Some([0.0; 3]),
-            up: None,
-            quaternion: None,
-        }
+        KeyPoseConfig { t, position: [0.0, 0.0, 5.0], look_at: Some([0.0; 3]), up: None, quaternion: None }
     }
 
     fn err_field(keys: &[KeyPoseConfig]) -> String {
@@ -275,30 +253,17 @@ mod tests {
         let traj = cfg.resolve().unwrap();
         assert_eq!(traj.keys().len(), 2);
         assert_eq!(traj.keys()[1].t_ns, 500_000_000);
-        assert!(
-            (traj.keys()[1].rotation.length() - 1.0).abs() < 1e-15,
-            "quaternion normalised"
-        );
+        assert!((traj.keys()[1].rotation.length() - 1.0).abs() < 1e-15, "quaternion normalised");
     }
 
     #[test]
     fn unknown_fields_are_rejected() {
         let bad_key = "type = \"keys\"\n[[keys]]\nt = 0.0\nposition = [0.0, 0.0, 1.0]\nlookat = [0.0, 0.0, 0.0]\n";
-        assert!(toml::from_str::<TrajectoryConfig>(bad_key)
-            .unwrap_err()
-            .to_string()
-            .contains("lookat"));
+        assert!(toml::from_str::<TrajectoryConfig>(bad_key).unwrap_err().to_string().contains("lookat"));
         let bad_top = "type = \"keys\"\nkeys = []\nspeed = 2.0\n";
-        assert!(toml::from_str::<TrajectoryConfig>(bad_top)
-            .unwrap_err()
-            .to_string()
-            .contains("speed"));
-        let bad_preset =
-            "type = \"fast_motion\"\ntarget = [0.0, 0.0, 0.0]\nradius = 3.0\nwobble = 1.0\n";
-        assert!(toml::from_str::<TrajectoryConfig>(bad_preset)
-            .unwrap_err()
-            .to_string()
-            .contains("wobble"));
+        assert!(toml::from_str::<TrajectoryConfig>(bad_top).unwrap_err().to_string().contains("speed"));
+        let bad_preset = "type = \"fast_motion\"\ntarget = [0.0, 0.0, 0.0]\nradius = 3.0\nwobble = 1.0\n";
+        assert!(toml::from_str::<TrajectoryConfig>(bad_preset).unwrap_err().to_string().contains("wobble"));
     }
 
     #[test]
@@ -344,14 +309,9 @@ mod tests {
 
     #[test]
     fn look_at_matches_camera_look_at() {
-        let (o, t, up) = (
-            DVec3::new(1.0, 2.0, 3.0),
-            DVec3::new(-1.0, 0.5, 0.0),
-            DVec3::Y,
-        );
+        let (o, t, up) = (DVec3::new(1.0, 2.0, 3.0), DVec3::new(-1.0, 0.5, 0.0), DVec3::Y);
         let q = look_at_rotation(o, t, up).unwrap();
-        let cam =
-            crate::scene::camera::Camera::look_at(o.as_vec3(), t.as_vec3(), up.as_vec3(), 1.0);
+        let cam = crate::scene::camera::Camera::look_at(o.as_vec3(), t.as_vec3(), up.as_vec3(), 1.0);
         let m = DMat3::from_quat(q);
         for (a, b) in [
             (m.x_axis, cam.to_world.x_axis.truncate()),

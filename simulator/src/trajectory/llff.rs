@@ -65,19 +65,9 @@ pub fn focal_from_yfov(height: f64, yfov: f64) -> f64 {
 impl LlffCamera {
     /// An LLFF camera for `pose`, a `width` x `height` image with full vertical FOV `yfov` (rad)
     /// and depth bounds `near` < `far` (m). Errors on non-finite or out-of-range values.
-    pub fn new(
-        pose: Pose,
-        width: u32,
-        height: u32,
-        yfov: f64,
-        near: f64,
-        far: f64,
-    ) -> Result<LlffCamera, LlffError> {
+    pub fn new(pose: Pose, width: u32, height: u32, yfov: f64, near: f64, far: f64) -> Result<LlffCamera, LlffError> {
         if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
-            return Err(LlffError::Invalid {
-                field: "yfov",
-                message: format!("{yfov} rad is not in (0, pi)"),
-            });
+            return Err(LlffError::Invalid { field: "yfov", message: format!("{yfov} rad is not in (0, pi)") });
         }
         let cam = LlffCamera {
             pose,
@@ -98,39 +88,23 @@ impl LlffCamera {
 
     fn validate(&self) -> Result<(), LlffError> {
         if !self.pose.position.is_finite() || !self.pose.rotation.is_finite() {
-            return Err(LlffError::Invalid {
-                field: "t",
-                message: "pose has a non-finite value".into(),
-            });
+            return Err(LlffError::Invalid { field: "t", message: "pose has a non-finite value".into() });
         }
-        for (field, v) in [
-            ("height", self.height),
-            ("width", self.width),
-            ("focal", self.focal),
-        ] {
+        for (field, v) in [("height", self.height), ("width", self.width), ("focal", self.focal)] {
             if !(v > 0.0 && v.is_finite()) {
-                return Err(LlffError::Invalid {
-                    field,
-                    message: format!("{v} is not a positive number of pixels"),
-                });
+                return Err(LlffError::Invalid { field, message: format!("{v} is not a positive number of pixels") });
             }
         }
         if !(self.near > 0.0 && self.near.is_finite()) {
             return Err(LlffError::Invalid {
                 field: "near",
-                message: format!(
-                    "{} is not a positive depth; use the nearest rendered depth",
-                    self.near
-                ),
+                message: format!("{} is not a positive depth; use the nearest rendered depth", self.near),
             });
         }
         if !(self.far > self.near && self.far.is_finite()) {
             return Err(LlffError::Invalid {
                 field: "far",
-                message: format!(
-                    "{} is not a finite depth beyond near = {}",
-                    self.far, self.near
-                ),
+                message: format!("{} is not a finite depth beyond near = {}", self.far, self.near),
             });
         }
         Ok(())
@@ -140,13 +114,7 @@ impl LlffCamera {
     pub fn to_row(&self) -> [f64; 17] {
         let r = self.pose.rotation_matrix();
         // LLFF columns: down, right, backward
-        let cols = [
-            -r.y_axis,
-            r.x_axis,
-            r.z_axis,
-            self.pose.position,
-            DVec3::new(self.height, self.width, self.focal),
-        ];
+        let cols = [-r.y_axis, r.x_axis, r.z_axis, self.pose.position, DVec3::new(self.height, self.width, self.focal)];
         let mut row = [0.0; 17];
         for i in 0..3 {
             for (j, c) in cols.iter().enumerate() {
@@ -161,10 +129,7 @@ impl LlffCamera {
     /// Read a row (inverse of [`LlffCamera::to_row`]); rejects rotations that are not pure.
     pub fn from_row(row: &[f64; 17]) -> Result<LlffCamera, LlffError> {
         if let Some(i) = row.iter().position(|v| !v.is_finite()) {
-            return Err(LlffError::Invalid {
-                field: "row",
-                message: format!("entry {i} is {}", row[i]),
-            });
+            return Err(LlffError::Invalid { field: "row", message: format!("entry {i} is {}", row[i]) });
         }
         let col = |j: usize| DVec3::new(row[j], row[5 + j], row[10 + j]);
         let (down, right, backward) = (col(0), col(1), col(2));
@@ -172,10 +137,7 @@ impl LlffCamera {
         let m = DMat3::from_cols(right, -down, backward);
         check_pure_rotation(&m)?;
         let cam = LlffCamera {
-            pose: Pose {
-                rotation: DQuat::from_mat3(&m).normalize(),
-                position: col(3),
-            },
+            pose: Pose { rotation: DQuat::from_mat3(&m).normalize(), position: col(3) },
             height: row[4],
             width: row[9],
             focal: row[14],
@@ -193,10 +155,7 @@ pub fn check_pure_rotation(m: &DMat3) -> Result<(), LlffError> {
     let orthonormality_error = e.to_cols_array().iter().fold(0.0f64, |a, v| a.max(v.abs()));
     let det = m.determinant();
     if orthonormality_error > ROTATION_TOLERANCE || (det - 1.0).abs() > ROTATION_TOLERANCE {
-        return Err(LlffError::NotRotation {
-            orthonormality_error,
-            det,
-        });
+        return Err(LlffError::NotRotation { orthonormality_error, det });
     }
     Ok(())
 }
@@ -207,23 +166,15 @@ mod tests {
     use glam::EulerRot;
 
     fn pose() -> Pose {
-        Pose {
-            rotation: DQuat::from_euler(EulerRot::YXZ, 2.1, -0.4, 0.3),
-            position: DVec3::new(-1.5, 2.25, 7.0),
-        }
+        Pose { rotation: DQuat::from_euler(EulerRot::YXZ, 2.1, -0.4, 0.3), position: DVec3::new(-1.5, 2.25, 7.0) }
     }
 
     #[test]
     fn row_layout_matches_dataset_format() {
         // identity: down = -Y, right = +X, backward = +Z
-        let p = Pose {
-            rotation: DQuat::IDENTITY,
-            position: DVec3::new(1.0, 2.0, 3.0),
-        };
+        let p = Pose { rotation: DQuat::IDENTITY, position: DVec3::new(1.0, 2.0, 3.0) };
         let yfov = 2.0 * (0.5f64).atan(); // tan(yfov/2) = 0.5 -> f = h
-        let row = LlffCamera::new(p, 600, 400, yfov, 0.5, 10.0)
-            .unwrap()
-            .to_row();
+        let row = LlffCamera::new(p, 600, 400, yfov, 0.5, 10.0).unwrap().to_row();
         #[rustfmt::skip]
         let want = [
             0.0, 1.0, 0.0, 1.0, 400.0,
@@ -241,41 +192,23 @@ mod tests {
         let cam = LlffCamera::new(pose(), 600, 400, 0.6, 0.8, 12.0).unwrap();
         let back = LlffCamera::from_row(&cam.to_row()).unwrap();
         let q = back.pose.rotation;
-        let q = if q.dot(cam.pose.rotation) < 0.0 {
-            -q
-        } else {
-            q
-        };
-        assert!(
-            (q - cam.pose.rotation).length() < 1e-12,
-            "{q:?} vs {:?}",
-            cam.pose.rotation
-        );
-        assert!((back.pose.rotation_matrix() - cam.pose.rotation_matrix())
-            .abs_diff_eq(DMat3::ZERO, 1e-12));
+        let q = if q.dot(cam.pose.rotation) < 0.0 { -q } else { q };
+        assert!((q - cam.pose.rotation).length() < 1e-12, "{q:?} vs {:?}", cam.pose.rotation);
+        assert!((back.pose.rotation_matrix() - cam.pose.rotation_matrix()).abs_diff_eq(DMat3::ZERO, 1e-12));
         assert!((back.pose.position - cam.pose.position).length() < 1e-12);
-        assert_eq!(
-            (back.height, back.width, back.near, back.far),
-            (400.0, 600.0, 0.8, 12.0)
-        );
+        assert_eq!((back.height, back.width, back.near, back.far), (400.0, 600.0, 0.8, 12.0));
         assert!((back.yfov() - 0.6).abs() < 1e-12);
     }
 
     #[test]
     fn loader_transform_gives_camera_axes() {
         let p = pose();
-        let row = LlffCamera::new(p, 600, 400, 0.6, 0.8, 12.0)
-            .unwrap()
-            .to_row();
+        let row = LlffCamera::new(p, 600, 400, 0.6, 0.8, 12.0).unwrap().to_row();
         let col = |j: usize| DVec3::new(row[j], row[5 + j], row[10 + j]);
         // the reference loader: [c1, -c0, c2] -> (right, up, backward)
         let (right, up, backward) = (col(1), -col(0), col(2));
         let cam = p.camera(0.6);
-        for (a, b) in [
-            (right, cam.to_world.x_axis),
-            (up, cam.to_world.y_axis),
-            (backward, cam.to_world.z_axis),
-        ] {
+        for (a, b) in [(right, cam.to_world.x_axis), (up, cam.to_world.y_axis), (backward, cam.to_world.z_axis)] {
             assert!((a.as_vec3() - b.truncate()).length() < 1e-6, "{a} vs {b}");
         }
         assert!((col(3).as_vec3() - cam.origin()).length() < 1e-6);
@@ -283,25 +216,17 @@ mod tests {
 
     #[test]
     fn non_rotation_rows_are_rejected() {
-        let good = LlffCamera::new(pose(), 600, 400, 0.6, 0.8, 12.0)
-            .unwrap()
-            .to_row();
+        let good = LlffCamera::new(pose(), 600, 400, 0.6, 0.8, 12.0).unwrap().to_row();
         // scaled column: not orthonormal
         let mut row = good;
         for i in 0..3 {
             row[5 * i] *= 1.01;
         }
-        assert!(matches!(
-            LlffCamera::from_row(&row),
-            Err(LlffError::NotRotation { .. })
-        ));
+        assert!(matches!(LlffCamera::from_row(&row), Err(LlffError::NotRotation { .. })));
         // sheared
         let mut row = good;
         row[1] += 1e-3;
-        assert!(matches!(
-            LlffCamera::from_row(&row),
-            Err(LlffError::NotRotation { .. })
-        ));
+        assert!(matches!(LlffCamera::from_row(&row), Err(LlffError::NotRotation { .. })));
         // reflection: orthonormal but det -1 (swap down and right)
         let mut row = good;
         for i in 0..3 {
@@ -314,15 +239,9 @@ mod tests {
         // bad bounds
         let mut row = good;
         row[16] = row[15];
-        assert!(matches!(
-            LlffCamera::from_row(&row),
-            Err(LlffError::Invalid { field: "far", .. })
-        ));
+        assert!(matches!(LlffCamera::from_row(&row), Err(LlffError::Invalid { field: "far", .. })));
         let mut row = good;
         row[15] = 0.0;
-        assert!(matches!(
-            LlffCamera::from_row(&row),
-            Err(LlffError::Invalid { field: "near", .. })
-        ));
+        assert!(matches!(LlffCamera::from_row(&row), Err(LlffError::Invalid { field: "near", .. })));
     }
 }

@@ -46,11 +46,7 @@ pub fn frame_times(fps: f64, start_ns: i64, end_ns: i64) -> Result<FrameTimes, T
         }
         times_ns.push(start_ns + offset);
     }
-    Ok(FrameTimes {
-        fps,
-        times_ns,
-        duration_ns,
-    })
+    Ok(FrameTimes { fps, times_ns, duration_ns })
 }
 
 impl Trajectory {
@@ -75,11 +71,7 @@ mod tests {
             assert_eq!(t, k as i64 * 1_000_000);
         }
         // the same through a trajectory with keys at 0.25 s and 1.25 s
-        let k = |t_ns| KeyPose {
-            t_ns,
-            position: DVec3::ZERO,
-            rotation: DQuat::IDENTITY,
-        };
+        let k = |t_ns| KeyPose { t_ns, position: DVec3::ZERO, rotation: DQuat::IDENTITY };
         let traj = Trajectory::new(vec![k(250_000_000), k(1_250_000_000)]).unwrap();
         let f = traj.sample(1000.0).unwrap();
         assert_eq!(f.times_ns.len(), 1000);
@@ -104,10 +96,7 @@ mod tests {
     #[test]
     fn bad_sampling_arguments_are_errors() {
         for fps in [0.0, -1.0, f64::NAN, f64::INFINITY, 2e9] {
-            assert!(
-                matches!(frame_times(fps, 0, 1), Err(TrajectoryError::Sampling(_))),
-                "fps {fps}"
-            );
+            assert!(matches!(frame_times(fps, 0, 1), Err(TrajectoryError::Sampling(_))), "fps {fps}");
         }
         assert!(frame_times(1000.0, 5, 5).is_err());
         assert!(frame_times(1000.0, 6, 5).is_err());

@@ -29,9 +29,9 @@ use simulator::image_io::read_exr;
 use simulator::reference::compare::rel_mse;
 use simulator::reference::mitsuba;
 use simulator::render::accel::{Accel, BvhPreset};
-use simulator::render::sampler::SamplerKind;
 use simulator::render::film::{Image, RenderSettings};
 use simulator::render::integrator::Renderer;
+use simulator::render::sampler::SamplerKind;
 use simulator::render::sampling::{cosine_hemisphere, Frame, Rng};
 use simulator::scene::{self, Camera, TriangleMesh};
 
@@ -210,7 +210,11 @@ fn bvh_bench(n: usize) -> Result<()> {
     let mesh = bumpy_sphere(n);
     let cam = Camera::look_at(Vec3::new(0.0, 0.5, 3.0), Vec3::ZERO, Vec3::Y, 0.8);
     let (w, h) = (1024u32, 1024u32);
-    println!("BVH: bumpy sphere, {} triangles; rays are closest-hit, {} threads", mesh.len(), rayon::current_num_threads());
+    println!(
+        "BVH: bumpy sphere, {} triangles; rays are closest-hit, {} threads",
+        mesh.len(),
+        rayon::current_num_threads()
+    );
     println!("  {:<14} {:>9} {:>16} {:>16}", "preset", "build s", "primary Mray/s", "diffuse Mray/s");
     for preset in BvhPreset::ALL {
         let accel = Accel::build(&mesh, preset);

@@ -57,7 +57,10 @@ pub struct EventsArgs {
 /// Milliseconds from a flag to integer nanoseconds (rounded), at least 1 ns.
 fn ms_to_ns(flag: &str, ms: f64) -> Result<i64> {
     let ns = ms * 1e6;
-    ensure!(ns.is_finite() && ns.round() >= 1.0 && ns < 9e18, "--{flag} {ms}: must be a positive number of milliseconds (at least 0.000001)");
+    ensure!(
+        ns.is_finite() && ns.round() >= 1.0 && ns < 9e18,
+        "--{flag} {ms}: must be a positive number of milliseconds (at least 0.000001)"
+    );
     Ok(ns.round() as i64)
 }
 
@@ -65,8 +68,10 @@ fn ms_to_ns(flag: &str, ms: f64) -> Result<i64> {
 pub fn resolve(args: &EventsArgs) -> Result<FramesJob> {
     let mut config = match &args.config {
         Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read the event config", path.display()))?;
-            toml::from_str::<EventConfig>(&text).with_context(|| format!("{}: not a valid event config", path.display()))?
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("{}: cannot read the event config", path.display()))?;
+            toml::from_str::<EventConfig>(&text)
+                .with_context(|| format!("{}: not a valid event config", path.display()))?
         }
         None => EventConfig::default(),
     };
@@ -175,14 +180,20 @@ mod tests {
 
     #[test]
     fn toml_config_then_flag_overrides() {
-        let cfg = toml_file("ok.toml", "c_pos = 0.3\nc_neg = 0.25\nseed = 7\n[noise.refractory]\nperiod_ns = 1000\nmode = \"consume\"\n");
+        let cfg = toml_file(
+            "ok.toml",
+            "c_pos = 0.3\nc_neg = 0.25\nseed = 7\n[noise.refractory]\nperiod_ns = 1000\nmode = \"consume\"\n",
+        );
         let cfg = cfg.to_str().unwrap();
         let job = resolve(&parse(&["--config", cfg, "--c-pos", "0.5"]).unwrap()).unwrap();
         let expected = EventConfig {
             c_pos: 0.5,
             c_neg: 0.25,
             seed: 7,
-            noise: NoiseConfig { refractory: Some(Refractory { period_ns: 1000, mode: RefractoryMode::Consume }), ..NoiseConfig::default() },
+            noise: NoiseConfig {
+                refractory: Some(Refractory { period_ns: 1000, mode: RefractoryMode::Consume }),
+                ..NoiseConfig::default()
+            },
             ..EventConfig::default()
         };
         assert_eq!(job.config, expected, "the file's values, c_pos from the flag");
@@ -214,7 +225,8 @@ mod tests {
     fn viz_flags_become_a_viz_config() {
         let job = resolve(&parse(&["--viz-dir", "v"]).unwrap()).unwrap();
         assert_eq!(job.viz, Some(VizConfig::new("v")));
-        let job = resolve(&parse(&["--viz-dir", "v", "--viz-window-ms", "2.5", "--rate-bin-ms", "0.1"]).unwrap()).unwrap();
+        let job =
+            resolve(&parse(&["--viz-dir", "v", "--viz-window-ms", "2.5", "--rate-bin-ms", "0.1"]).unwrap()).unwrap();
         let viz = job.viz.unwrap();
         assert_eq!((viz.window_ns, viz.rate_bin_ns), (2_500_000, 100_000));
         let e = format!("{:#}", resolve(&parse(&["--viz-dir", "v", "--viz-window-ms", "0"]).unwrap()).unwrap_err());

@@ -18,7 +18,8 @@ use crate::npy::npy_header;
 use crate::npy::zip::{end_record, Crc32, ZipEntry, MAX_ZIP};
 
 /// The columns: zip entry name, numpy dtype, bytes per element.
-const COLUMNS: [(&str, &str, u64); 4] = [("x.npy", "<u2", 2), ("y.npy", "<u2", 2), ("t.npy", "<i8", 8), ("p.npy", "|i1", 1)];
+const COLUMNS: [(&str, &str, u64); 4] =
+    [("x.npy", "<u2", 2), ("y.npy", "<u2", 2), ("t.npy", "<i8", 8), ("p.npy", "|i1", 1)];
 /// Bytes per event over all columns.
 const EVENT_BYTES: u64 = 2 + 2 + 8 + 1;
 /// Generous bound on everything but the data: 4 x (local header + name + npy header + central
@@ -81,7 +82,11 @@ impl NpzSink {
                 copied += k as u64;
             }
             if copied != self.n * item {
-                return Err(io_err(&s.path, "scratch column has the wrong length", format!("{copied} bytes, expected {}", self.n * item)));
+                return Err(io_err(
+                    &s.path,
+                    "scratch column has the wrong length",
+                    format!("{copied} bytes, expected {}", self.n * item),
+                ));
             }
             // Patch the CRC into the local header (offset 14), then carry on at the end.
             let entry = ZipEntry { crc: crc.finish(), ..entry };

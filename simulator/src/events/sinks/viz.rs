@@ -144,8 +144,9 @@ impl VizSink {
     /// A sink for `width x height` events drawing into `cfg.dir` (created now).
     pub fn create(cfg: VizConfig, width: u32, height: u32) -> io::Result<VizSink> {
         cfg.validate().map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e))?;
-        std::fs::create_dir_all(&cfg.dir)
-            .map_err(|e| super::io_err(&cfg.dir, "cannot create the visualisation folder; choose another --viz-dir", e))?;
+        std::fs::create_dir_all(&cfg.dir).map_err(|e| {
+            super::io_err(&cfg.dir, "cannot create the visualisation folder; choose another --viz-dir", e)
+        })?;
         Ok(VizSink {
             cfg,
             width,

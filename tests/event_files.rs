@@ -8,48 +8,13 @@
 //! print SKIPPED, or fail when `EVBLUR_REQUIRE_MITSUBA=1`.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use evblur_tests::{python_with, run_python, temp_dir};
 use glam::Vec3;
 use simulator::events::sinks::{EventWriter, H5Layout, SinkKind, VizConfig};
 use simulator::events::{run_on_frames, Event, EventConfig, EventSink, FramesJob, TimeUnit};
 use simulator::image_io::write_image;
-use simulator::reference::mitsuba;
 use simulator::render::film::Image;
-
-/// A fresh, empty folder under the system temp dir.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("evblur-event-files-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// The Python with h5py and numpy, or None (after printing SKIPPED; a panic when required).
-fn python_with_h5py(test: &str) -> Option<PathBuf> {
-    let py = mitsuba::python().filter(|py| {
-        Command::new(py).args(["-c", "import h5py, numpy"]).output().map(|o| o.status.success()).unwrap_or(false)
-    });
-    if py.is_none() {
-        let msg = "no Python with h5py and numpy (run tests/mitsuba/setup.sh, or set EVBLUR_MITSUBA_PYTHON)";
-        if std::env::var("EVBLUR_REQUIRE_MITSUBA").as_deref() == Ok("1") {
-            panic!("EVBLUR_REQUIRE_MITSUBA=1 but {msg}");
-        }
-        println!("SKIPPED {test}: {msg}");
-    }
-    py
-}
-
-/// Run `python -c script args...` and fail the test with its output unless it succeeds.
-fn run_python(py: &Path, script: &str, args: &[String]) {
-    let out = Command::new(py).arg("-c").arg(script).args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "python check failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 /// `n` time-sorted events with ties, both polarities and ~29 ms of span from `t0` ns; the Python
 /// check rebuilds the same list.
@@ -125,7 +90,7 @@ print("ok")
 
 #[test]
 fn event_files_read_back_in_python() {
-    let dir = temp_dir("formats");
+    let dir = temp_dir("event-files", "formats");
     let (n, t0) = (5000, 1_234_567_890);
     let events = known_events(n, t0);
     for (name, layout) in [
@@ -145,7 +110,7 @@ fn event_files_read_back_in_python() {
         std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
     names.sort();
     assert_eq!(names, ["dsec.h5", "events.npz", "events.txt", "nerf.h5"], "no temporary files remain");
-    let Some(py) = python_with_h5py("event_files_read_back_in_python") else { return };
+    let Some(py) = python_with("h5py, numpy", "event_files_read_back_in_python") else { return };
     run_python(&py, CHECK_FILES, &[dir.display().to_string(), n.to_string(), t0.to_string()]);
 }
 
@@ -193,7 +158,7 @@ print("ok")
 
 #[test]
 fn evsim_events_runs_on_png_frames() {
-    let dir = temp_dir("cli");
+    let dir = temp_dir("event-files", "cli");
     let (frames, ts) = write_frames(&dir);
     let out = dir.join("out/events.h5");
     let s = run_on_frames(&job(&frames, &ts, &out, SinkKind::NerfH5), None).unwrap();
@@ -211,14 +176,14 @@ fn evsim_events_runs_on_png_frames() {
     let lines = std::fs::read_to_string(dir.join("e.txt")).unwrap().lines().count() as u64;
     assert_eq!(lines, s.on + s.off);
 
-    if let Some(py) = python_with_h5py("evsim_events_runs_on_png_frames") {
+    if let Some(py) = python_with("h5py, numpy", "evsim_events_runs_on_png_frames") {
         run_python(&py, CHECK_CLI, &[out.display().to_string(), (s.on + s.off).to_string()]);
     }
 }
 
 #[test]
 fn evsim_events_with_viz_writes_the_event_file_and_the_pictures() {
-    let dir = temp_dir("cli-viz");
+    let dir = temp_dir("event-files", "cli-viz");
     let (frames, ts) = write_frames(&dir);
     let out = dir.join("e.txt");
     let viz_dir = dir.join("viz");
@@ -244,7 +209,7 @@ fn evsim_events_with_viz_writes_the_event_file_and_the_pictures() {
 
 #[test]
 fn evsim_events_input_errors_name_the_file_and_leave_no_output() {
-    let dir = temp_dir("cli-errors");
+    let dir = temp_dir("event-files", "cli-errors");
     let (frames, ts) = write_frames(&dir);
     let out = dir.join("events.h5");
     let err = |j: &FramesJob| format!("{:#}", run_on_frames(j, None).unwrap_err());

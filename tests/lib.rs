@@ -1,2 +1,55 @@
 //! Cross-crate and reference checks live in the test files beside this one:
-//! `mitsuba_reference.rs` compares the path tracer with Mitsuba 3 on the scenes in `scenes/`.
+//! `mitsuba_reference.rs` (the path tracer against Mitsuba 3), `gltf_render.rs` (glTF end to
+//! end), `event_files.rs` and `npy_files.rs` (our files as h5py / numpy read them).
+//!
+//! This library holds what those files share: fresh temp folders and the reference Python
+//! (the Mitsuba venv, which also has numpy and h5py), skipped or required by
+//! `EVBLUR_REQUIRE_MITSUBA=1` (set by `tests/run.sh`).
+
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use simulator::reference::mitsuba;
+
+/// A fresh, empty folder `evblur-<group>-<name>-<pid>` under the system temp dir.
+pub fn temp_dir(group: &str, name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("evblur-{group}-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The reference Python if it imports `modules` (e.g. `"h5py, numpy"`). Otherwise `None` after
+/// printing a SKIPPED line for `test`, or a panic when `EVBLUR_REQUIRE_MITSUBA=1`.
+pub fn python_with(modules: &str, test: &str) -> Option<PathBuf> {
+    let py = mitsuba::python().filter(|py| {
+        let import = format!("import {modules}");
+        Command::new(py).args(["-c", &import]).output().map(|o| o.status.success()).unwrap_or(false)
+    });
+    if py.is_none() {
+        let msg = format!(
+            "no Mitsuba venv Python that imports {modules} (run tests/mitsuba/setup.sh, or set EVBLUR_MITSUBA_PYTHON)"
+        );
+        if std::env::var("EVBLUR_REQUIRE_MITSUBA").as_deref() == Ok("1") {
+            panic!("EVBLUR_REQUIRE_MITSUBA=1 but {msg}");
+        }
+        println!("\n*** SKIPPED {test}: {msg} ***\n");
+    }
+    py
+}
+
+/// Run `python -c script args...` and fail the test with its output unless it succeeds.
+pub fn run_python<I, S>(py: &Path, script: &str, args: I)
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    let out = Command::new(py).arg("-c").arg(script).args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "python check failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

@@ -106,14 +106,7 @@ fn check_scene(python: &Path, variant: &str, name: &'static str) -> Vec<Row> {
 
 #[test]
 fn path_tracer_matches_mitsuba() {
-    let Some(python) = mitsuba::python() else {
-        let msg = "no Mitsuba python: set EVBLUR_MITSUBA_PYTHON or run tests/mitsuba/setup.sh";
-        if std::env::var("EVBLUR_REQUIRE_MITSUBA").as_deref() == Ok("1") {
-            panic!("EVBLUR_REQUIRE_MITSUBA=1 but {msg}");
-        }
-        eprintln!("\n*** SKIPPED mitsuba_reference: {msg} ***\n");
-        return;
-    };
+    let Some(python) = evblur_tests::python_with("mitsuba", "mitsuba_reference") else { return };
     let variant = std::env::var("EVBLUR_MITSUBA_VARIANT").unwrap_or_else(|_| "llvm_ad_rgb".into());
     let rows: Vec<Row> = SCENES.iter().flat_map(|s| check_scene(&python, &variant, s)).collect();
 

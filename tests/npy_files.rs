@@ -6,45 +6,8 @@
 //! Without the Mitsuba venv's Python (with numpy) the test prints SKIPPED, or fails when
 //! `EVBLUR_REQUIRE_MITSUBA=1`.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
+use evblur_tests::{python_with, run_python, temp_dir};
 use simulator::npy::{read_npy, read_npz, write_npy, write_npz, NpyArray, NpyData};
-use simulator::reference::mitsuba;
-
-/// A fresh, empty folder under the system temp dir.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("evblur-npy-files-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// The Python with numpy, or None (after printing SKIPPED; a panic when required).
-fn python_with_numpy(test: &str) -> Option<PathBuf> {
-    let py = mitsuba::python().filter(|py| {
-        Command::new(py).args(["-c", "import numpy"]).output().map(|o| o.status.success()).unwrap_or(false)
-    });
-    if py.is_none() {
-        let msg = "no Python with numpy (run tests/mitsuba/setup.sh, or set EVBLUR_MITSUBA_PYTHON)";
-        if std::env::var("EVBLUR_REQUIRE_MITSUBA").as_deref() == Ok("1") {
-            panic!("EVBLUR_REQUIRE_MITSUBA=1 but {msg}");
-        }
-        println!("SKIPPED {test}: {msg}");
-    }
-    py
-}
-
-/// Run `python -c script dir` and fail the test with its output unless it succeeds.
-fn run_python(py: &Path, script: &str, dir: &Path) {
-    let out = Command::new(py).arg("-c").arg(script).arg(dir).output().unwrap();
-    assert!(
-        out.status.success(),
-        "python check failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 /// Pose row `i`: distinct, non-round values (the Python side rebuilds them).
 fn pose_row(i: usize) -> [f64; 17] {
@@ -53,8 +16,8 @@ fn pose_row(i: usize) -> [f64; 17] {
 
 #[test]
 fn numpy_reads_our_npy_and_npz() {
-    let Some(py) = python_with_numpy("numpy_reads_our_npy_and_npz") else { return };
-    let dir = temp_dir("ours");
+    let Some(py) = python_with("numpy", "numpy_reads_our_npy_and_npz") else { return };
+    let dir = temp_dir("npy-files", "ours");
     let rows: Vec<[f64; 17]> = (0..7).map(pose_row).collect();
     write_npy(&dir.join("poses_bounds.npy"), &NpyArray::f64_2d(&rows)).unwrap();
     let mid: Vec<f64> = (0..7).map(|i| 1e6 * i as f64 / 3.0).collect();
@@ -83,13 +46,13 @@ for k, v in [("timestamps", mid), ("timestamps_start", mid - 12500.25), ("timest
     assert z[k].dtype == np.float64 and z[k].shape == (7,), (k, z[k].dtype, z[k].shape)
     assert np.array_equal(z[k], v), (k, z[k] - v)
 "#;
-    run_python(&py, script, &dir);
+    run_python(&py, script, [&dir]);
 }
 
 #[test]
 fn we_read_numpy_save_savez_and_savez_compressed() {
-    let Some(py) = python_with_numpy("we_read_numpy_save_savez_and_savez_compressed") else { return };
-    let dir = temp_dir("numpy");
+    let Some(py) = python_with("numpy", "we_read_numpy_save_savez_and_savez_compressed") else { return };
+    let dir = temp_dir("npy-files", "numpy");
     // Every dtype as a 2 x 3 array of the same six values (bool: odd ones), 1-D and 2-D.
     let script = r#"
 import sys, numpy as np
@@ -106,7 +69,7 @@ for k, v in arrays.items():
 np.savez(d + "/plain.npz", **arrays)
 np.savez_compressed(d + "/compressed.npz", **arrays)
 "#;
-    run_python(&py, script, &dir);
+    run_python(&py, script, [&dir]);
     let vals = [0u8, 1, 2, 3, 100, 127];
     let two_by_three = |data: NpyData| NpyArray::new(&[2, 3], data).unwrap();
     let mut want: Vec<(String, NpyArray)> = vec![

@@ -21,6 +21,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` is deliberate: it is also true for NaN
 #![warn(missing_docs)]
 
+pub mod dataset;
 pub mod error;
 pub mod events;
 pub mod export;

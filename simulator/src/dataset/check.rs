@@ -1,0 +1,1 @@
+//! The dataset schema check (to be written).

@@ -1,7 +1,24 @@
 //! The Ev-DeblurBlender dataset: settings, the writer pipeline and the schema check.
 //!
 //! What lives where:
+//! - [`settings`]: the `[dataset]` table of a scene file and the command-line overrides.
+//! - [`plan`]: scene file + overrides -> a checked [`Plan`] (frame clock, views, content keys).
+//! - [`cache`]: the half-float EXR frame cache (resume, and sweeps without re-rendering).
+//! - [`writer`]: the pipeline: frames -> events, exposure, sharp renders, metadata, manifest.
+//! - [`depth`]: z-depth through pixel centres and the LLFF near/far bounds.
 //! - [`check`]: opens a dataset folder (ours or a public Ev-DeblurBlender one) and verifies
 //!   shapes, dtypes, sortedness, rotations, timestamps and the sharp/blurry marking.
+//! - [`error`]: [`DatasetError`].
 
+pub mod cache;
 pub mod check;
+pub mod depth;
+pub mod error;
+pub mod plan;
+pub mod settings;
+pub mod writer;
+
+pub use error::DatasetError;
+pub use plan::Plan;
+pub use settings::{DatasetConfig, NoisePattern, Overrides};
+pub use writer::{write_dataset, RunOptions, Summary};

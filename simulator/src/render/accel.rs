@@ -31,7 +31,8 @@ use obvhs::{
 use crate::scene::TriangleMesh;
 
 /// obvhs build presets, from quickest to build to quickest to trace.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum BvhPreset {
     /// PLOC with the minimum search radius, no reinsertion: the fastest build, the slowest trace.
     FastestBuild,

@@ -17,7 +17,8 @@
 use super::sampling::{mix64, Rng};
 
 /// Which generator a render uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum SamplerKind {
     /// Independent uniform random numbers (PCG32).
     Independent,

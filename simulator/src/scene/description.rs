@@ -44,6 +44,13 @@ pub struct Description {
     pub camera: Option<CameraDesc>,
     /// Environment replacing the mesh file's.
     pub environment: Option<EnvironmentDesc>,
+    /// Camera path of a dataset (`evsim dataset`); ignored when rendering one image.
+    pub trajectory: Option<crate::trajectory::TrajectoryConfig>,
+    /// Dataset settings (resolution, frame rate, exposure, views, ...); see
+    /// [`crate::dataset::settings`].
+    pub dataset: Option<crate::dataset::settings::DatasetConfig>,
+    /// Event-camera settings of a dataset; see [`crate::events::EventConfig`].
+    pub events: Option<crate::events::EventConfig>,
 }
 
 /// Which image axis `fov` spans.

@@ -3,6 +3,8 @@
 //! - `evsim render <scene> --spp N --out img.exr`: path-trace one image.
 //! - `evsim events --frames DIR --timestamps FILE --out events.h5`: the event model over a folder of
 //!   frames into an event file (.h5 Ev-DeblurNeRF or DSEC, .txt, .npz).
+//! - `evsim dataset scenes/<name>/scene.toml --out DIR`: a whole dataset (frames, events, blurry
+//!   and sharp views, poses, manifest), resumable.
 //! - `evsim bench render`: render throughput (and the Mitsuba ratio when Mitsuba is installed),
 //!   BVH build time and ray throughput on a 1 M-triangle scene.
 
@@ -22,6 +24,7 @@ use simulator::render::sampler::SamplerKind;
 use simulator::scene::{self, Camera};
 
 mod bench;
+mod dataset_cmd;
 mod events_cmd;
 
 /// evblur simulator: render scenes (and, soon, event-camera datasets).
@@ -38,6 +41,8 @@ enum Command {
     Render(RenderArgs),
     /// Run the event model over a folder of frames (PNG or EXR) and write an event file.
     Events(events_cmd::EventsArgs),
+    /// Simulate an Ev-DeblurBlender dataset (blurry + sharp views, events, poses) from a scene file.
+    Dataset(dataset_cmd::DatasetArgs),
     /// Benchmarks that print performance figures.
     Bench {
         #[command(subcommand)]
@@ -198,6 +203,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Render(args) => render(&args),
         Command::Events(args) => events_cmd::run(&args),
+        Command::Dataset(args) => dataset_cmd::run(&args),
         Command::Bench { what } => bench::run(what),
     }
 }

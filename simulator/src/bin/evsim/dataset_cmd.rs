@@ -1,0 +1,138 @@
+//! `evsim dataset`: a scene file in, an Ev-DeblurBlender dataset folder out.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Result;
+use clap::Args;
+
+use simulator::dataset::{write_dataset, Overrides, Plan, RunOptions};
+
+/// Options of `evsim dataset`.
+#[derive(Args, Debug, Clone)]
+pub struct DatasetArgs {
+    /// The scene file (`scenes/<name>/scene.toml`, with a [trajectory] table).
+    pub scene: PathBuf,
+    /// The dataset folder to write (created; an interrupted run in it is resumed).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Override [dataset] exposure_ms: shutter time of the blurry views (ms).
+    #[arg(long)]
+    pub exposure_ms: Option<f64>,
+    /// Override [dataset] fps: rendered frames per second.
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// Override [events] c_pos and c_neg: the contrast threshold (log units).
+    #[arg(long)]
+    pub threshold: Option<f32>,
+    /// Override [dataset] width (pixels).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Override [dataset] height (pixels).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Override [dataset] spp: samples per pixel of every frame.
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Override [dataset] sharp_spp: samples per pixel of the sharp renders.
+    #[arg(long)]
+    pub sharp_spp: Option<u32>,
+    /// Override [dataset] views: number of images.
+    #[arg(long)]
+    pub views: Option<u32>,
+    /// Override [dataset] seed (renderer).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Keep linear frames in this folder (shared between runs: exposure and event sweeps reuse
+    /// them). Default: <out>/.frames, deleted after success.
+    #[arg(long)]
+    pub frames_cache: Option<PathBuf>,
+    /// Keep the default frame cache (<out>/.frames) after success.
+    #[arg(long)]
+    pub keep_frames: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl DatasetArgs {
+    /// The command-line overrides.
+    pub fn overrides(&self) -> Overrides {
+        Overrides {
+            exposure_ms: self.exposure_ms,
+            fps: self.fps,
+            threshold: self.threshold,
+            width: self.width,
+            height: self.height,
+            spp: self.spp,
+            sharp_spp: self.sharp_spp,
+            views: self.views,
+            seed: self.seed,
+        }
+    }
+}
+
+/// Run `evsim dataset`.
+pub fn run(args: &DatasetArgs) -> Result<()> {
+    let start = Instant::now();
+    let mut exclude = vec![args.out.as_path()];
+    if let Some(c) = &args.frames_cache {
+        exclude.push(c.as_path());
+    }
+    let plan = Plan::resolve(&args.scene, &args.overrides(), &exclude)?;
+    let c = &plan.config;
+    let sharp = (0..plan.views.len()).filter(|&i| plan.is_sharp(i)).count();
+    eprintln!(
+        "{}: {} frames {}x{} at {} FPS, {} spp; {} views ({} sharp, {} spp), exposure {} ms, threshold {}/{}",
+        args.scene.display(),
+        plan.clock.n_frames,
+        c.width,
+        c.height,
+        c.fps,
+        c.spp,
+        plan.views.len(),
+        sharp,
+        plan.sharp_spp,
+        c.exposure_ms,
+        plan.events.c_pos,
+        plan.events.c_neg
+    );
+    let opts = RunOptions {
+        out: args.out.clone(),
+        frames_cache: args.frames_cache.clone(),
+        keep_frames: args.keep_frames,
+        progress: !args.quiet,
+        stop_after_renders: None,
+    };
+    let s = write_dataset(&plan, &opts)?;
+    if s.already_complete {
+        println!("{}: already complete with these settings; nothing to do", args.out.display());
+        return Ok(());
+    }
+    let secs = |d: std::time::Duration| d.as_secs_f64();
+    println!(
+        "{}: {} images, {} events ({} ON, {} OFF) in {:.1} s",
+        args.out.display(),
+        plan.views.len(),
+        s.events_on + s.events_off,
+        s.events_on,
+        s.events_off,
+        start.elapsed().as_secs_f64()
+    );
+    println!(
+        "  frames: {} rendered, {} from cache; sharp renders: {}",
+        s.frames_rendered,
+        s.frames - s.frames_rendered,
+        s.sharp_rendered
+    );
+    println!(
+        "  time: render {:.1} s, cache read {:.1} s, events {:.1} s, exposure+png {:.1} s, depth+metadata {:.1} s; peak memory {}",
+        secs(s.render_time),
+        secs(s.cache_read_time),
+        secs(s.events_time),
+        secs(s.exposure_time),
+        secs(s.metadata_time),
+        s.peak_rss.map(|b| format!("{:.0} MB", b as f64 / 1e6)).unwrap_or_else(|| "n/a".into())
+    );
+    Ok(())
+}

@@ -1,0 +1,344 @@
+//! Resolving a scene file plus overrides into a [`Plan`]: every setting checked, the frame
+//! clock, the views and their times, and the content keys, before any rendering starts.
+//!
+//! View placement: view `i` has mid-time `t_i = t_start + first + i * spacing`, both rounded to
+//! whole frames, with `first = max(50 ms, tau/2 + one frame)` and `spacing` filling the
+//! trajectory up to the same margin before its last frame (unless given). Views are sharp when
+//! `i % sharp_every == 0`.
+//!
+//! Keys (SHA-256, hex): the *scene key* hashes the scene file and every file beside it (the
+//! meshes, textures and environment maps it may reference); the *render key* adds everything
+//! that changes a rendered pixel (resolution, camera FOV, trajectory, renderer settings); the
+//! *settings hash* adds everything else (views, exposure, response, events). Frames are cached
+//! under the render key, so exposure and event sweeps reuse them; a dataset folder whose
+//! manifest has the same settings hash is already complete.
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+
+use super::settings::{DatasetConfig, Overrides};
+use super::DatasetError;
+use crate::events::EventConfig;
+use crate::exposure::{duration_ns_from_ms, FrameClock, ViewSpec};
+use crate::scene::{self, description, Scene};
+use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
+
+/// Bumped whenever the renderer or the pipeline changes what a frame or file contains, so that
+/// stale caches are never reused.
+pub const PIPELINE_VERSION: u32 = 1;
+
+/// Everything a dataset run needs, resolved and checked.
+#[derive(Debug)]
+pub struct Plan {
+    /// The scene description file (`scene.toml`).
+    pub scene_file: PathBuf,
+    /// The loaded scene.
+    pub scene: Scene,
+    /// `[dataset]` with the overrides applied.
+    pub config: DatasetConfig,
+    /// `[events]` with the overrides applied.
+    pub events: EventConfig,
+    /// `[trajectory]` as written.
+    pub trajectory_config: TrajectoryConfig,
+    /// The interpolating trajectory.
+    pub trajectory: Trajectory,
+    /// Full vertical field of view (rad) of the scene's camera.
+    pub yfov: f64,
+    /// Frame times (ns); frame `k` is at `clock.time_ns(k)`.
+    pub clock: FrameClock,
+    /// The views of `images_1/`, in order; `views[i].id == i`.
+    pub views: Vec<ViewSpec>,
+    /// Exposure `tau` (ns).
+    pub tau_ns: i64,
+    /// Samples per pixel of the sharp renders.
+    pub sharp_spp: u32,
+    /// SHA-256 of the scene folder's files.
+    pub scene_key: String,
+    /// SHA-256 of what determines the rendered frames.
+    pub render_key: String,
+    /// SHA-256 of every setting.
+    pub settings_hash: String,
+}
+
+/// The part of the plan that determines rendered pixels (hashed into the render key).
+#[derive(Serialize)]
+struct RenderIdentity<'a> {
+    pipeline_version: u32,
+    scene_key: &'a str,
+    width: u32,
+    height: u32,
+    yfov_bits: u64,
+    max_depth: u32,
+    seed: u64,
+    sampler: crate::render::sampler::SamplerKind,
+    bvh: crate::render::accel::BvhPreset,
+    trajectory: &'a TrajectoryConfig,
+}
+
+/// Everything (hashed into the settings hash).
+#[derive(Serialize)]
+struct FullIdentity<'a> {
+    render_key: &'a str,
+    dataset: &'a DatasetConfig,
+    events: &'a EventConfig,
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Hash the scene file and every regular, non-hidden file under its folder (sorted by relative
+/// path; at most 4 levels deep), skipping `exclude` folders (outputs that live inside it).
+pub fn scene_key(scene_file: &Path, exclude: &[&Path]) -> Result<String, DatasetError> {
+    let folder = scene_file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let mut files = Vec::new();
+    collect_files(folder, folder, 0, exclude, &mut files)?;
+    files.sort();
+    let mut h = Sha256::new();
+    for rel in &files {
+        let bytes =
+            std::fs::read(folder.join(rel)).map_err(|e| DatasetError::io(folder.join(rel), "cannot read", e))?;
+        h.update(rel.to_string_lossy().as_bytes());
+        h.update((bytes.len() as u64).to_le_bytes());
+        h.update(&bytes);
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+fn collect_files(
+    root: &Path,
+    dir: &Path,
+    depth: usize,
+    exclude: &[&Path],
+    out: &mut Vec<PathBuf>,
+) -> Result<(), DatasetError> {
+    let canon = |p: &Path| std::fs::canonicalize(p).ok();
+    let excluded: Vec<PathBuf> = exclude.iter().filter_map(|p| canon(p)).collect();
+    let entries = std::fs::read_dir(dir).map_err(|e| DatasetError::io(dir, "cannot list the scene folder", e))?;
+    for entry in entries {
+        let entry = entry.map_err(|e| DatasetError::io(dir, "cannot list the scene folder", e))?;
+        let name = entry.file_name();
+        if name.to_string_lossy().starts_with('.') {
+            continue;
+        }
+        let path = entry.path();
+        let ty = entry.file_type().map_err(|e| DatasetError::io(&path, "cannot stat", e))?;
+        if ty.is_dir() {
+            if depth < 4 && !canon(&path).is_some_and(|c| excluded.contains(&c)) {
+                collect_files(root, &path, depth + 1, exclude, out)?;
+            }
+        } else if ty.is_file() {
+            out.push(path.strip_prefix(root).unwrap_or(&path).to_path_buf());
+        }
+    }
+    Ok(())
+}
+
+impl Plan {
+    /// Read `scene_file` (a `.toml` scene description with `[trajectory]` and optional
+    /// `[dataset]` / `[events]` tables), apply `overrides`, check everything and load the scene.
+    /// `exclude` lists folders inside the scene folder that are outputs (not hashed).
+    pub fn resolve(scene_file: &Path, overrides: &Overrides, exclude: &[&Path]) -> Result<Plan, DatasetError> {
+        let text = std::fs::read_to_string(scene_file)
+            .map_err(|e| DatasetError::io(scene_file, "cannot read the scene file", e))?;
+        let desc = description::parse(&text, scene_file)?;
+        let bad = |field: &str, message: String| DatasetError::config(scene_file, field, message);
+        let trajectory_config = desc.trajectory.clone().ok_or_else(|| {
+            bad(
+                "trajectory",
+                "missing: a dataset needs a camera path; add e.g. `[trajectory]\\ntype = \"fast_motion\"\\n\
+                 target = [0.0, 0.0, 0.0]\\nradius = 4.0` (see `simulator::trajectory`)"
+                    .into(),
+            )
+        })?;
+        let mut config = desc.dataset.clone().unwrap_or_default();
+        let mut events = desc.events.clone().unwrap_or_default();
+        overrides.apply(&mut config, &mut events);
+        validate(&config, &events, scene_file)?;
+
+        let trajectory = trajectory_config.resolve().map_err(|e| bad("trajectory", e.to_string()))?;
+        if trajectory.start_ns() < 0 {
+            return Err(bad(
+                "trajectory",
+                "starts before t = 0 s; the dataset's timestamps must be positive, so shift the keys' times".into(),
+            ));
+        }
+        let times = frame_times(config.fps, trajectory.start_ns(), trajectory.end_ns())
+            .map_err(|e| bad("dataset.fps", e.to_string()))?;
+        let n_frames = times.times_ns.len();
+        let dt_ns = (1e9 / config.fps).round() as i64;
+        if times.times_ns.windows(2).any(|w| w[1] - w[0] != dt_ns) {
+            return Err(bad(
+                "dataset.fps",
+                format!(
+                    "{} FPS does not give a whole number of nanoseconds per frame; use e.g. 1000 or 500",
+                    config.fps
+                ),
+            ));
+        }
+        let clock =
+            FrameClock::new(times.times_ns[0], dt_ns, n_frames).map_err(|e| bad("dataset.fps", e.to_string()))?;
+        let tau_ns = duration_ns_from_ms("dataset.exposure_ms", config.exposure_ms)
+            .map_err(|e| bad("dataset.exposure_ms", e.to_string()))?;
+        let views = place_views(&config, &clock, tau_ns).map_err(|(field, m)| bad(field, m))?;
+
+        // the camera: the description's [camera] (or the mesh file's first camera) gives the FOV
+        if let Some(cam) = &desc.camera {
+            if let (description::FovAxis::X, Some(aspect)) = (cam.fov_axis, cam.aspect) {
+                let want = config.width as f32 / config.height as f32;
+                if (aspect - want).abs() > 1e-3 * want {
+                    return Err(bad(
+                        "camera.aspect",
+                        format!(
+                            "{aspect} differs from the dataset's width / height = {want}; set aspect = {want} \
+                             (or give the FOV with fov_axis = \"y\")"
+                        ),
+                    ));
+                }
+            }
+        }
+        let scene = scene::load(scene_file)?;
+        let yfov = scene.cameras.first().map(|c| c.yfov as f64).ok_or_else(|| {
+            bad("camera", "missing: the field of view comes from the camera; add a [camera] table with fov".into())
+        })?;
+
+        let scene_key = scene_key(scene_file, exclude)?;
+        let render_key = sha256_hex(
+            toml::to_string(&RenderIdentity {
+                pipeline_version: PIPELINE_VERSION,
+                scene_key: &scene_key,
+                width: config.width,
+                height: config.height,
+                yfov_bits: yfov.to_bits(),
+                max_depth: config.max_depth,
+                seed: config.seed,
+                sampler: config.sampler,
+                bvh: config.bvh,
+                trajectory: &trajectory_config,
+            })
+            .expect("plain data serialises")
+            .as_bytes(),
+        );
+        let settings_hash = sha256_hex(
+            toml::to_string(&FullIdentity { render_key: &render_key, dataset: &config, events: &events })
+                .expect("plain data serialises")
+                .as_bytes(),
+        );
+        let sharp_spp = config.sharp_spp.unwrap_or(4 * config.spp);
+        Ok(Plan {
+            scene_file: scene_file.to_path_buf(),
+            scene,
+            config,
+            events,
+            trajectory_config,
+            trajectory,
+            yfov,
+            clock,
+            views,
+            tau_ns,
+            sharp_spp,
+            scene_key,
+            render_key,
+            settings_hash,
+        })
+    }
+
+    /// Whether view `i` is a sharp test view.
+    pub fn is_sharp(&self, i: usize) -> bool {
+        matches!(self.views[i].exposure, crate::exposure::Exposure::Sharp)
+    }
+}
+
+/// Range checks with the field's name.
+fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), DatasetError> {
+    let bad = |field: &str, message: String| Err(DatasetError::config(file, field, message));
+    if d.width == 0 || d.height == 0 || d.width > 16384 || d.height > 16384 {
+        return bad("dataset.width/height", format!("{}x{} must be 1..=16384 pixels each", d.width, d.height));
+    }
+    if !(d.fps > 0.0 && d.fps.is_finite()) {
+        return bad("dataset.fps", format!("{} must be a positive frame rate (frames per second)", d.fps));
+    }
+    if !(d.exposure_ms > 0.0 && d.exposure_ms.is_finite()) {
+        return bad("dataset.exposure_ms", format!("{} must be a positive time in milliseconds", d.exposure_ms));
+    }
+    if d.views < 2 {
+        return bad("dataset.views", format!("{} must be at least 2", d.views));
+    }
+    for (field, v) in [("dataset.first_view_ms", d.first_view_ms), ("dataset.spacing_ms", d.spacing_ms)] {
+        if let Some(v) = v {
+            if !(v > 0.0 && v.is_finite()) {
+                return bad(field, format!("{v} must be a positive time in milliseconds"));
+            }
+        }
+    }
+    if d.spp == 0 {
+        return bad("dataset.spp", "0 must be at least 1 sample per pixel".into());
+    }
+    if let Some(s) = d.sharp_spp {
+        if s < d.spp {
+            return bad("dataset.sharp_spp", format!("{s} must be at least spp = {}", d.spp));
+        }
+    }
+    if d.max_depth == 0 {
+        return bad("dataset.max_depth", "0 must be at least 1 path segment".into());
+    }
+    if !(d.gain > 0.0 && d.gain.is_finite()) {
+        return bad("dataset.gain", format!("{} must be a positive finite factor", d.gain));
+    }
+    d.response.validate().map_err(|e| DatasetError::config(file, "dataset.response", e.to_string()))?;
+    ev.validate().map_err(|e| DatasetError::config(file, "events", e.to_string()))?;
+    Ok(())
+}
+
+/// View mid-times on frame times (see the module doc); errors name the field to change.
+fn place_views(d: &DatasetConfig, clock: &FrameClock, tau_ns: i64) -> Result<Vec<ViewSpec>, (&'static str, String)> {
+    let dt = clock.dt_ns;
+    let n_frames = clock.n_frames as i64;
+    let frames_of = |ms: f64| (ms * 1e6 / dt as f64).round() as i64;
+    // half the exposure in frames, rounded up, plus one frame of margin
+    let half = (tau_ns + 2 * dt - 1) / (2 * dt) + 1;
+    let first = match d.first_view_ms {
+        Some(ms) => frames_of(ms),
+        None => frames_of(50.0).max(half),
+    };
+    if first < half {
+        return Err((
+            "dataset.first_view_ms",
+            format!(
+                "view 0's exposure would start before the trajectory (or at time 0); use at least {} ms",
+                half as f64 * dt as f64 / 1e6
+            ),
+        ));
+    }
+    let n = d.views as i64;
+    let last_allowed = n_frames - 1 - first.max(half); // same margin at the end
+    let spacing = match d.spacing_ms {
+        Some(ms) => frames_of(ms),
+        None => (last_allowed - first) / (n - 1),
+    };
+    if spacing < 1 || first + (n - 1) * spacing > n_frames - 1 - half {
+        let span_ms = n_frames as f64 * dt as f64 / 1e6;
+        return Err((
+            "dataset.views",
+            format!(
+                "{n} views{} with {} ms exposures do not fit in the {span_ms} ms trajectory; use fewer views, a \
+                 shorter exposure or spacing, or a longer trajectory",
+                d.spacing_ms.map(|s| format!(" {s} ms apart")).unwrap_or_default(),
+                d.exposure_ms
+            ),
+        ));
+    }
+    let views = (0..n as usize)
+        .map(|i| {
+            let t = clock.time_ns((first + i as i64 * spacing) as usize);
+            if d.sharp_every > 0 && i % d.sharp_every as usize == 0 {
+                ViewSpec::sharp(i, t)
+            } else {
+                ViewSpec::blurry(i, t, tau_ns)
+            }
+        })
+        .collect();
+    Ok(views)
+}

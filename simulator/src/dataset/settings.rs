@@ -1,0 +1,151 @@
+//! The `[dataset]` table of `scenes/<name>/scene.toml`: what to render, how to expose it and
+//! where the views lie. Every field has a default (the paper's settings); unknown keys are errors.
+//!
+//! ```toml
+//! [dataset]
+//! width = 600              # pixels
+//! height = 400             # pixels
+//! fps = 1000.0             # rendered frames per second
+//! exposure_ms = 40.0       # shutter time of the blurry views (ms)
+//! views = 30               # images in images_1/
+//! sharp_every = 8          # views 0, 8, 16, ... are sharp test views (llffhold = 8)
+//! spp = 16                 # samples per pixel of every 1000 FPS frame
+//! sharp_spp = 64           # samples per pixel of the sharp renders (default 4 x spp)
+//! seed = 0                 # renderer seed
+//! response = { type = "gamma", gamma = 2.2 }
+//! ```
+//!
+//! Command-line overrides ([`Overrides`]) are applied on top before anything is resolved.
+
+use serde::{Deserialize, Serialize};
+
+use crate::exposure::CameraResponse;
+use crate::render::accel::BvhPreset;
+use crate::render::sampler::SamplerKind;
+
+/// Where a frame's random numbers come from, frame to frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum NoisePattern {
+    /// Every frame reuses the same per-pixel random numbers, so path-tracing noise is a fixed
+    /// pattern on the sensor and only changes where the image content changes: far fewer
+    /// noise-induced events (see `evsim dataset-noise`).
+    #[default]
+    Fixed,
+    /// Every frame draws new random numbers (noise flickers from frame to frame).
+    PerFrame,
+}
+
+/// The `[dataset]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DatasetConfig {
+    /// Image width (pixels, >= 1).
+    pub width: u32,
+    /// Image height (pixels, >= 1).
+    pub height: u32,
+    /// Rendered frames per second (Hz, > 0); the paper renders at 1000.
+    pub fps: f64,
+    /// Exposure time `tau` of the blurry views (ms, > 0).
+    pub exposure_ms: f64,
+    /// Number of images in `images_1/` (>= 2).
+    pub views: u32,
+    /// Every `sharp_every`-th view (index 0, n, 2n, ...) is a sharp test view; 0 = none.
+    pub sharp_every: u32,
+    /// Time from the trajectory's start to the mid-time of view 0 (ms); default
+    /// `max(50, exposure_ms / 2 + one frame)`, so that exposure sweeps up to ~100 ms keep the
+    /// same view times.
+    pub first_view_ms: Option<f64>,
+    /// Time between consecutive view mid-times (ms); default: the views spread evenly from
+    /// `first_view_ms` to the same margin before the trajectory's end. Rounded to whole frames.
+    pub spacing_ms: Option<f64>,
+    /// Samples per pixel of every rendered frame (>= 1).
+    pub spp: u32,
+    /// Samples per pixel of the sharp renders (test views and `images_sharp_1/`); default
+    /// `4 * spp`, never fewer than `spp`.
+    pub sharp_spp: Option<u32>,
+    /// Maximum path segments (Mitsuba's convention; 2 = direct light only).
+    pub max_depth: u32,
+    /// Renderer seed (the event seed is in `[events]`).
+    pub seed: u64,
+    /// The renderer's sample generator.
+    pub sampler: SamplerKind,
+    /// Fixed or per-frame noise pattern.
+    pub noise_pattern: NoisePattern,
+    /// BVH build preset.
+    pub bvh: BvhPreset,
+    /// Camera response applied after exposure averaging (default gamma 2.2).
+    pub response: CameraResponse,
+    /// Linear gain applied before the response (unitless, > 0): an exposure compensation.
+    pub gain: f32,
+}
+
+impl Default for DatasetConfig {
+    fn default() -> DatasetConfig {
+        DatasetConfig {
+            width: 600,
+            height: 400,
+            fps: 1000.0,
+            exposure_ms: 40.0,
+            views: 30,
+            sharp_every: 8,
+            first_view_ms: None,
+            spacing_ms: None,
+            spp: 16,
+            sharp_spp: None,
+            max_depth: 5,
+            seed: 0,
+            sampler: SamplerKind::default(),
+            noise_pattern: NoisePattern::default(),
+            bvh: BvhPreset::default(),
+            response: CameraResponse::default(),
+            gain: 1.0,
+        }
+    }
+}
+
+/// Command-line overrides of the scene's settings (`None` = keep the file's value).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Overrides {
+    /// `[dataset] exposure_ms`.
+    pub exposure_ms: Option<f64>,
+    /// `[dataset] fps`.
+    pub fps: Option<f64>,
+    /// Both `[events] c_pos` and `c_neg`.
+    pub threshold: Option<f32>,
+    /// `[dataset] width`.
+    pub width: Option<u32>,
+    /// `[dataset] height`.
+    pub height: Option<u32>,
+    /// `[dataset] spp`.
+    pub spp: Option<u32>,
+    /// `[dataset] sharp_spp`.
+    pub sharp_spp: Option<u32>,
+    /// `[dataset] views`.
+    pub views: Option<u32>,
+    /// `[dataset] seed`.
+    pub seed: Option<u64>,
+}
+
+impl Overrides {
+    /// Apply the overrides to the file's tables.
+    pub fn apply(&self, d: &mut DatasetConfig, ev: &mut crate::events::EventConfig) {
+        let set = |dst: &mut f64, v: Option<f64>| {
+            if let Some(v) = v {
+                *dst = v;
+            }
+        };
+        set(&mut d.exposure_ms, self.exposure_ms);
+        set(&mut d.fps, self.fps);
+        if let Some(c) = self.threshold {
+            ev.c_pos = c;
+            ev.c_neg = c;
+        }
+        d.width = self.width.unwrap_or(d.width);
+        d.height = self.height.unwrap_or(d.height);
+        d.spp = self.spp.unwrap_or(d.spp);
+        d.sharp_spp = self.sharp_spp.or(d.sharp_spp);
+        d.views = self.views.unwrap_or(d.views);
+        d.seed = self.seed.unwrap_or(d.seed);
+    }
+}

@@ -1,0 +1,482 @@
+//! The dataset writer: a [`Plan`] in, an Ev-DeblurBlender folder out.
+//!
+//! Stages, streamed frame by frame (memory: a few images plus the event model's per-pixel
+//! state, whatever the sequence length):
+//! 1. **Frames.** Frame `k` at `t_k` comes from the frame cache or is rendered (`spp` samples,
+//!    the fixed or per-frame noise pattern), rounded to half floats and cached. Its depth grid
+//!    gives the LLFF bounds of row `k` of `all_poses_bounds.npy`. The frame then feeds
+//! 2. **events** (the event model over `gain * frame`, into `events.h5`) and
+//! 3. **exposure** (the box-filter average of every blurry view whose window it overlaps;
+//!    finished views go through the camera response into `images_1/NN.png`).
+//! 4. **Sharp renders** (`sharp_spp` samples at each view's mid-time, cached as well): the sharp
+//!    test views of `images_1/` and `images_sharp_1/NN.png` for every view.
+//! 5. **Metadata**: `timestamps.npz`, `poses_bounds.npy` (mid-exposure pose; near/far over the
+//!    frames of the exposure), `all_poses_bounds.npy`, `all_timestamps.npy`, `transforms.json`
+//!    and, last, the `dataset.toml` manifest that marks the folder complete.
+//!
+//! Every file is written atomically. An interrupted run resumes from the cached frames (the
+//! event and exposure stages are re-run over them, which takes seconds); a complete folder with
+//! the same settings hash is left alone.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use super::cache::{round_to_f16, FrameCache};
+use super::depth::{bounds, depth_grid};
+use super::plan::{Plan, PIPELINE_VERSION};
+use super::settings::NoisePattern;
+use super::DatasetError;
+use crate::events::sinks::NerfH5Sink;
+use crate::events::{EventConfig, EventSimulator};
+use crate::exposure::{Exposure, ExposureStack, ViewSpec};
+use crate::image_io::write_atomic;
+use crate::npy::{write_npy, write_npz, NpyArray};
+use crate::render::film::{Image, RenderSettings};
+use crate::render::integrator::Renderer;
+use crate::trajectory::{LlffCamera, Pose, TrajectoryConfig};
+
+/// Every `DEPTH_STRIDE`-th pixel (in x and y) is traced for the depth bounds.
+pub const DEPTH_STRIDE: u32 = 4;
+
+/// How to run the writer.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    /// The dataset folder.
+    pub out: PathBuf,
+    /// Frame cache root; `None` = `<out>/.frames`, removed after a successful run unless
+    /// `keep_frames`.
+    pub frames_cache: Option<PathBuf>,
+    /// Keep the default frame cache after success (for later sweeps).
+    pub keep_frames: bool,
+    /// Show progress bars on stderr.
+    pub progress: bool,
+    /// Stop with [`DatasetError::Interrupted`] after rendering this many images (tests).
+    pub stop_after_renders: Option<usize>,
+}
+
+/// What a run did and how long each stage took.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Summary {
+    /// The folder was already complete with these settings; nothing was done.
+    pub already_complete: bool,
+    /// Frames in the sequence.
+    pub frames: usize,
+    /// Frames rendered in this run (the rest came from the cache).
+    pub frames_rendered: usize,
+    /// Sharp views rendered in this run.
+    pub sharp_rendered: usize,
+    /// ON events written.
+    pub events_on: u64,
+    /// OFF events written.
+    pub events_off: u64,
+    /// Wall time spent rendering frames and sharp views.
+    pub render_time: Duration,
+    /// Wall time spent reading cached frames.
+    pub cache_read_time: Duration,
+    /// Wall time of the event model and the event file.
+    pub events_time: Duration,
+    /// Wall time of exposure averaging and PNG encoding.
+    pub exposure_time: Duration,
+    /// Wall time of depth bounds and metadata files.
+    pub metadata_time: Duration,
+    /// Peak resident memory of the process (bytes), when the OS reports it.
+    pub peak_rss: Option<u64>,
+}
+
+/// Peak resident set size of this process (Linux `VmHWM`), bytes.
+pub fn peak_rss() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// `images_1/NN.png`-style name of view `i` of `n` (zero-padded to at least 2 digits).
+pub fn image_name(i: usize, n: usize) -> String {
+    let digits = n.saturating_sub(1).to_string().len().max(2);
+    format!("{i:0digits$}.png")
+}
+
+/// The files a complete dataset holds (besides the images).
+pub const METADATA_FILES: [&str; 6] = [
+    "images_1/timestamps.npz",
+    "poses_bounds.npy",
+    "all_poses_bounds.npy",
+    "all_timestamps.npy",
+    "events.h5",
+    "transforms.json",
+];
+
+/// The manifest's `settings_hash`, if `out/dataset.toml` exists and has one.
+fn manifest_hash(out: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(out.join("dataset.toml")).ok()?;
+    let value: toml::Value = toml::from_str(&text).ok()?;
+    value.get("settings_hash")?.as_str().map(str::to_string)
+}
+
+fn io_stage(path: &Path) -> impl Fn(anyhow::Error) -> DatasetError + '_ {
+    move |e| DatasetError::stage(path.display(), format!("{e:#}"))
+}
+
+/// Render settings of frame `k` (or, with `sharp`, of the sharp render at that frame time).
+fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> RenderSettings {
+    let c = &plan.config;
+    let mut s = RenderSettings::new(pose.camera(plan.yfov as f32));
+    s.width = c.width;
+    s.height = c.height;
+    s.max_depth = c.max_depth;
+    s.seed = c.seed;
+    s.sampler = c.sampler;
+    if sharp {
+        s.spp = plan.sharp_spp;
+        // sharp renders draw from their own streams (far from any sequence frame index)
+        s.frame = (1 << 40) + k as u64;
+    } else {
+        s.spp = c.spp;
+        s.frame = match c.noise_pattern {
+            NoisePattern::Fixed => 0,
+            NoisePattern::PerFrame => k as u64,
+        };
+    }
+    s
+}
+
+/// Write the dataset of `plan` into `opts.out`. See the [module docs](self).
+pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetError> {
+    let out = &opts.out;
+    let n_views = plan.views.len();
+    let images = out.join("images_1");
+    let sharp_dir = out.join("images_sharp_1");
+    let complete = |out: &Path| {
+        METADATA_FILES.iter().all(|f| out.join(f).is_file())
+            && (0..n_views).all(|i| images.join(image_name(i, n_views)).is_file())
+    };
+    match manifest_hash(out) {
+        Some(h) if h == plan.settings_hash && complete(out) => {
+            return Ok(Summary { already_complete: true, frames: plan.clock.n_frames, ..Summary::default() })
+        }
+        Some(h) if h != plan.settings_hash => {
+            return Err(DatasetError::Conflict {
+                path: out.join("dataset.toml"),
+                message: format!(
+                    "this folder holds a dataset made with other settings (hash {} vs {}); delete the folder or \
+                     choose another --out",
+                    &h[..h.len().min(12)],
+                    &plan.settings_hash[..12]
+                ),
+            });
+        }
+        _ => {}
+    }
+    for dir in [&images, &sharp_dir] {
+        std::fs::create_dir_all(dir).map_err(|e| DatasetError::io(dir, "cannot create (choose another --out)", e))?;
+    }
+    let cache_root = opts.frames_cache.clone().unwrap_or_else(|| out.join(".frames"));
+    let cache = FrameCache::open(&cache_root, plan)?;
+
+    let c = &plan.config;
+    let (w, h) = (c.width, c.height);
+    let n_frames = plan.clock.n_frames;
+    let mut summary = Summary { frames: n_frames, ..Summary::default() };
+    let pb = if opts.progress { ProgressBar::new(0) } else { ProgressBar::hidden() };
+    pb.set_style(
+        ProgressStyle::with_template("{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ETA {eta_precise}")
+            .expect("valid template"),
+    );
+    // progress counts samples per pixel rendered or read, so the ETA weighs sharp renders
+    pb.set_length(n_frames as u64 * c.spp as u64 + n_views as u64 * plan.sharp_spp as u64);
+
+    let t = Instant::now();
+    let renderer = Renderer::with_preset(&plan.scene, c.bvh);
+    summary.render_time += t.elapsed();
+    let mut renders = 0usize;
+    let mut count_render = |summary: &mut Summary| -> Result<(), DatasetError> {
+        renders += 1;
+        if opts.stop_after_renders.is_some_and(|n| renders >= n) {
+            pb.abandon();
+            return Err(DatasetError::Interrupted { frames: summary.frames_rendered });
+        }
+        Ok(())
+    };
+
+    // stages 1-3: frames -> events + blurry views
+    let blurry: Vec<ViewSpec> = plan.views.iter().copied().filter(|v| !matches!(v.exposure, Exposure::Sharp)).collect();
+    let mut stack = ExposureStack::new(&blurry, plan.clock, w, h)
+        .map_err(|e| DatasetError::config(&plan.scene_file, "dataset", e.to_string()))?;
+    let event_cfg: EventConfig = plan.events.clone();
+    let mut sim = EventSimulator::new(event_cfg, w, h)
+        .map_err(|e| DatasetError::config(&plan.scene_file, "events", e.to_string()))?;
+    let events_path = out.join("events.h5");
+    let mut sink = NerfH5Sink::create(&events_path).map_err(|e| DatasetError::io(&events_path, "cannot create", e))?;
+    let mut frame_bounds = Vec::with_capacity(n_frames);
+    let mut frame_poses = Vec::with_capacity(n_frames);
+    pb.set_message("frames");
+    for k in 0..n_frames {
+        let t_ns = plan.clock.time_ns(k);
+        let pose = plan.trajectory.pose_at(t_ns).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
+        let path = cache.frame_path(c.fps, c.spp, c.noise_pattern, k);
+        let t = Instant::now();
+        let frame = match FrameCache::load(&path)? {
+            Some(img) if img.width == w && img.height == h => {
+                summary.cache_read_time += t.elapsed();
+                img
+            }
+            _ => {
+                let mut img = renderer.render(&render_settings(plan, &pose, k, false), None);
+                round_to_f16(&mut img);
+                FrameCache::store(&path, &img)?;
+                summary.frames_rendered += 1;
+                summary.render_time += t.elapsed();
+                count_render(&mut summary)?;
+                img
+            }
+        };
+        pb.inc(c.spp as u64);
+
+        // depth bounds of this frame's camera
+        let t = Instant::now();
+        let cam = pose.camera(plan.yfov as f32);
+        let b = bounds(&depth_grid(&renderer.accel, &cam, w, h, DEPTH_STRIDE)).ok_or_else(|| {
+            DatasetError::stage(
+                format!("frame {k} at {} ms", t_ns as f64 / 1e6),
+                "the camera sees no surface, so LLFF near/far bounds are undefined; point the trajectory at the scene",
+            )
+        })?;
+        frame_bounds.push(b);
+        frame_poses.push(pose);
+        summary.metadata_time += t.elapsed();
+
+        // events see the sensor irradiance, gain included
+        let t = Instant::now();
+        let stats = if c.gain == 1.0 {
+            sim.step(&frame, t_ns, &mut sink)
+        } else {
+            let mut scaled = frame.clone();
+            scaled.pixels.iter_mut().for_each(|p| *p *= c.gain);
+            sim.step(&scaled, t_ns, &mut sink)
+        }
+        .map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
+        summary.events_on += stats.on;
+        summary.events_off += stats.off;
+        summary.events_time += t.elapsed();
+
+        let t = Instant::now();
+        let finished = stack.push(k, &frame).map_err(|e| DatasetError::stage(format!("frame {k}: exposure"), e))?;
+        for (id, img) in finished {
+            write_png(&images.join(image_name(id, n_views)), &img, plan)?;
+        }
+        summary.exposure_time += t.elapsed();
+    }
+    stack.finish().map_err(|e| DatasetError::stage("exposure", e))?;
+    let t = Instant::now();
+    let written = sink.finish().map_err(|e| DatasetError::io(&events_path, "cannot complete", e))?;
+    debug_assert_eq!(written, summary.events_on + summary.events_off);
+    summary.events_time += t.elapsed();
+
+    // stage 4: sharp renders
+    pb.set_message("sharp views");
+    for view in &plan.views {
+        let k = plan.clock.frame_at(view.mid_ns).expect("views lie on frame times");
+        let path = cache.sharp_path(plan.sharp_spp, view.mid_ns);
+        let t = Instant::now();
+        let img = match FrameCache::load(&path)? {
+            Some(img) if img.width == w && img.height == h => {
+                summary.cache_read_time += t.elapsed();
+                img
+            }
+            _ => {
+                let mut img = renderer.render(&render_settings(plan, &frame_poses[k], k, true), None);
+                round_to_f16(&mut img);
+                FrameCache::store(&path, &img)?;
+                summary.sharp_rendered += 1;
+                summary.render_time += t.elapsed();
+                count_render(&mut summary)?;
+                img
+            }
+        };
+        pb.inc(plan.sharp_spp as u64);
+        let t = Instant::now();
+        let name = image_name(view.id, n_views);
+        write_png(&sharp_dir.join(&name), &img, plan)?;
+        if matches!(view.exposure, Exposure::Sharp) {
+            write_png(&images.join(&name), &img, plan)?;
+        }
+        summary.exposure_time += t.elapsed();
+    }
+
+    // stage 5: metadata, manifest last
+    pb.set_message("metadata");
+    let t = Instant::now();
+    write_metadata(plan, out, &frame_poses, &frame_bounds, &summary)?;
+    summary.metadata_time += t.elapsed();
+    pb.finish_and_clear();
+    if opts.frames_cache.is_none() && !opts.keep_frames {
+        let _ = std::fs::remove_dir_all(&cache_root); // best effort: the dataset is complete
+    }
+    summary.peak_rss = peak_rss();
+    Ok(summary)
+}
+
+/// Encode a linear view through the camera response (with the gain) and write it atomically.
+fn write_png(path: &Path, img: &Image, plan: &Plan) -> Result<(), DatasetError> {
+    let bytes = plan
+        .config
+        .response
+        .encode_png(img, plan.config.gain)
+        .map_err(|e| DatasetError::stage(path.display(), format!("cannot encode PNG: {e}")))?;
+    write_atomic(path, &bytes).map_err(io_stage(path))
+}
+
+/// The manifest: every setting, the keys and the counts (no timings, so that the same inputs
+/// give the same bytes).
+#[derive(Serialize)]
+struct Manifest<'a> {
+    tool: &'static str,
+    version: &'static str,
+    pipeline_version: u32,
+    scene: String,
+    scene_key: &'a str,
+    render_key: &'a str,
+    settings_hash: &'a str,
+    frames: usize,
+    frame_period_ns: i64,
+    first_frame_ns: i64,
+    views: usize,
+    sharp_views: Vec<usize>,
+    exposure_ns: i64,
+    sharp_spp: u32,
+    yfov_deg: f64,
+    events: u64,
+    events_on: u64,
+    events_off: u64,
+    dataset: &'a super::DatasetConfig,
+    #[serde(rename = "event_model")]
+    event_model: &'a EventConfig,
+    trajectory: &'a TrajectoryConfig,
+}
+
+/// Write `timestamps.npz`, the pose files, `transforms.json` and the manifest.
+fn write_metadata(
+    plan: &Plan,
+    out: &Path,
+    poses: &[Pose],
+    frame_bounds: &[(f64, f64)],
+    summary: &Summary,
+) -> Result<(), DatasetError> {
+    let c = &plan.config;
+    let npy_err = |e: crate::npy::NpyError| DatasetError::stage("dataset metadata", e);
+    let llff = |pose: Pose, (near, far): (f64, f64), what: String| {
+        LlffCamera::new(pose, c.width, c.height, plan.yfov, near, far).map_err(|e| DatasetError::stage(what, e))
+    };
+
+    // the dense trajectory: every rendered frame
+    let mut all_rows = Vec::with_capacity(poses.len());
+    for (k, (&pose, &b)) in poses.iter().zip(frame_bounds).enumerate() {
+        all_rows.push(llff(pose, b, format!("frame {k}"))?.to_row());
+    }
+    let all_t: Vec<f64> = (0..plan.clock.n_frames).map(|k| plan.clock.time_ns(k) as f64 / 1e3).collect();
+
+    // the views: mid-exposure pose, bounds over the frames the exposure covers
+    let mut rows = Vec::with_capacity(plan.views.len());
+    let (mut mid, mut start, mut end) = (vec![], vec![], vec![]);
+    for v in &plan.views {
+        let weights = v.weights(&plan.clock).map_err(|e| DatasetError::stage(format!("view {}", v.id), e))?;
+        let near = weights.iter().map(|&(k, _)| frame_bounds[k].0).fold(f64::INFINITY, f64::min);
+        let far = weights.iter().map(|&(k, _)| frame_bounds[k].1).fold(0.0, f64::max);
+        let k = plan.clock.frame_at(v.mid_ns).expect("views lie on frame times");
+        rows.push(llff(poses[k], (near, far), format!("view {}", v.id))?.to_row());
+        let (s, e) = v.window_us();
+        mid.push(v.mid_ns as f64 / 1e3);
+        start.push(s);
+        end.push(e);
+    }
+    write_npz(
+        &out.join("images_1/timestamps.npz"),
+        &[
+            ("timestamps", NpyArray::vector(mid)),
+            ("timestamps_start", NpyArray::vector(start)),
+            ("timestamps_end", NpyArray::vector(end)),
+        ],
+    )
+    .map_err(npy_err)?;
+    write_npy(&out.join("poses_bounds.npy"), &NpyArray::f64_2d(&rows)).map_err(npy_err)?;
+    write_npy(&out.join("all_poses_bounds.npy"), &NpyArray::f64_2d(&all_rows)).map_err(npy_err)?;
+    write_npy(&out.join("all_timestamps.npy"), &NpyArray::vector(all_t)).map_err(npy_err)?;
+
+    let transforms = transforms_json(plan, poses);
+    let path = out.join("transforms.json");
+    write_atomic(&path, transforms.as_bytes()).map_err(io_stage(&path))?;
+
+    let manifest = Manifest {
+        tool: "evsim",
+        version: env!("CARGO_PKG_VERSION"),
+        pipeline_version: PIPELINE_VERSION,
+        scene: plan.scene_file.display().to_string(),
+        scene_key: &plan.scene_key,
+        render_key: &plan.render_key,
+        settings_hash: &plan.settings_hash,
+        frames: plan.clock.n_frames,
+        frame_period_ns: plan.clock.dt_ns,
+        first_frame_ns: plan.clock.t0_ns,
+        views: plan.views.len(),
+        sharp_views: (0..plan.views.len()).filter(|&i| plan.is_sharp(i)).collect(),
+        exposure_ns: plan.tau_ns,
+        sharp_spp: plan.sharp_spp,
+        yfov_deg: plan.yfov.to_degrees(),
+        events: summary.events_on + summary.events_off,
+        events_on: summary.events_on,
+        events_off: summary.events_off,
+        dataset: &plan.config,
+        event_model: &plan.events,
+        trajectory: &plan.trajectory_config,
+    };
+    let text = format!(
+        "# evsim dataset manifest: written last, so its presence marks a complete dataset\n{}",
+        toml::to_string(&manifest).map_err(|e| DatasetError::stage("dataset.toml", e))?
+    );
+    let path = out.join("dataset.toml");
+    write_atomic(&path, text.as_bytes()).map_err(io_stage(&path))
+}
+
+/// `transforms.json` (nerfstudio / instant-ngp): the sharp renders of every view
+/// (`images_sharp_1/`), camera-to-world in the OpenGL convention (x right, y up, z backward,
+/// as ours), pinhole intrinsics, and which views are test views.
+fn transforms_json(plan: &Plan, poses: &[Pose]) -> String {
+    let c = &plan.config;
+    let (w, h) = (c.width as f64, c.height as f64);
+    let focal = crate::trajectory::llff::focal_from_yfov(h, plan.yfov);
+    let n = plan.views.len();
+    let mut frames = Vec::new();
+    let (mut train, mut test) = (vec![], vec![]);
+    for v in &plan.views {
+        let k = plan.clock.frame_at(v.mid_ns).expect("views lie on frame times");
+        let m = glam::DMat4::from_rotation_translation(poses[k].rotation, poses[k].position);
+        let rows: Vec<Vec<f64>> = (0..4).map(|r| (0..4).map(|col| m.col(col)[r]).collect()).collect();
+        let file = format!("images_sharp_1/{}", image_name(v.id, n));
+        if plan.is_sharp(v.id) { &mut test } else { &mut train }.push(serde_json::Value::from(file.clone()));
+        frames.push(serde_json::json!({
+            "file_path": file,
+            "transform_matrix": rows,
+            "time": v.mid_ns as f64 / 1e9,
+        }));
+    }
+    let json = serde_json::json!({
+        "camera_model": "OPENCV",
+        "w": c.width,
+        "h": c.height,
+        "fl_x": focal,
+        "fl_y": focal,
+        "cx": w / 2.0,
+        "cy": h / 2.0,
+        "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0,
+        "camera_angle_x": 2.0 * (w / (2.0 * focal)).atan(),
+        "camera_angle_y": plan.yfov,
+        "train_filenames": train,
+        "test_filenames": test,
+        "frames": frames,
+    });
+    serde_json::to_string_pretty(&json).expect("plain JSON") + "\n"
+}

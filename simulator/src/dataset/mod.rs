@@ -8,7 +8,7 @@
 //! - [`depth`]: z-depth through pixel centres and the LLFF near/far bounds.
 //! - [`check`]: opens a dataset folder (ours or a public Ev-DeblurBlender one) and verifies
 //!   shapes, dtypes, sortedness, rotations, timestamps and the sharp/blurry marking.
-//! - [`error`]: [`DatasetError`].
+//! - [`error`] holds [`DatasetError`].
 
 pub mod cache;
 pub mod check;

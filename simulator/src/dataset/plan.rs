@@ -6,14 +6,15 @@
 //! trajectory up to the same margin before its last frame (unless given). Views are sharp when
 //! `i % sharp_every == 0`.
 //!
-//! Keys (SHA-256, hex): the *scene key* hashes the scene file and every file beside it (the
-//! meshes, textures and environment maps it may reference); the *render key* adds everything
+//! Keys (SHA-256, hex): the *scene key* hashes the loaded scene's content (geometry, materials,
+//! texels, lights, environment); the *render key* adds everything
 //! that changes a rendered pixel (resolution, camera FOV, trajectory, renderer settings); the
 //! *settings hash* adds everything else (views, exposure, response, events). Frames are cached
 //! under the render key, so exposure and event sweeps reuse them; a dataset folder whose
 //! manifest has the same settings hash is already complete.
 
 use std::path::{Path, PathBuf};
+
 
 use serde::Serialize;
 use sha2::{Digest, Sha256};
@@ -89,58 +90,52 @@ fn sha256_hex(bytes: &[u8]) -> String {
     Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// Hash the scene file and every regular, non-hidden file under its folder (sorted by relative
-/// path; at most 4 levels deep), skipping `exclude` folders (outputs that live inside it).
-pub fn scene_key(scene_file: &Path, exclude: &[&Path]) -> Result<String, DatasetError> {
-    let folder = scene_file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut files = Vec::new();
-    collect_files(folder, folder, 0, exclude, &mut files)?;
-    files.sort();
-    let mut h = Sha256::new();
-    for rel in &files {
-        let bytes =
-            std::fs::read(folder.join(rel)).map_err(|e| DatasetError::io(folder.join(rel), "cannot read", e))?;
-        h.update(rel.to_string_lossy().as_bytes());
-        h.update((bytes.len() as u64).to_le_bytes());
-        h.update(&bytes);
+/// Feeds f32 values into a hash in blocks (one `update` per 16 K values).
+fn hash_f32s(h: &mut Sha256, values: impl Iterator<Item = f32>) {
+    let mut buf = Vec::with_capacity(1 << 16);
+    for v in values {
+        buf.extend_from_slice(&v.to_le_bytes());
+        if buf.len() == buf.capacity() {
+            h.update(&buf);
+            buf.clear();
+        }
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    h.update(&buf);
 }
 
-fn collect_files(
-    root: &Path,
-    dir: &Path,
-    depth: usize,
-    exclude: &[&Path],
-    out: &mut Vec<PathBuf>,
-) -> Result<(), DatasetError> {
-    let canon = |p: &Path| std::fs::canonicalize(p).ok();
-    let excluded: Vec<PathBuf> = exclude.iter().filter_map(|p| canon(p)).collect();
-    let entries = std::fs::read_dir(dir).map_err(|e| DatasetError::io(dir, "cannot list the scene folder", e))?;
-    for entry in entries {
-        let entry = entry.map_err(|e| DatasetError::io(dir, "cannot list the scene folder", e))?;
-        let name = entry.file_name();
-        if name.to_string_lossy().starts_with('.') {
-            continue;
-        }
-        let path = entry.path();
-        let ty = entry.file_type().map_err(|e| DatasetError::io(&path, "cannot stat", e))?;
-        if ty.is_dir() {
-            if depth < 4 && !canon(&path).is_some_and(|c| excluded.contains(&c)) {
-                collect_files(root, &path, depth + 1, exclude, out)?;
-            }
-        } else if ty.is_file() {
-            out.push(path.strip_prefix(root).unwrap_or(&path).to_path_buf());
-        }
+/// SHA-256 of the loaded scene's content: triangles, normals, UVs, materials, texture texels,
+/// punctual lights and the environment (cameras excluded: the trajectory places the camera).
+/// Hashing what was loaded, rather than files, catches every referenced file (meshes,
+/// textures, maps) and ignores unrelated ones.
+pub fn scene_key(scene: &Scene) -> String {
+    let mut h = Sha256::new();
+    let m = &scene.mesh;
+    h.update((m.positions.len() as u64).to_le_bytes());
+    hash_f32s(&mut h, m.positions.iter().chain(&m.normals).flat_map(|v| v.to_array()));
+    hash_f32s(&mut h, m.uvs.iter().flat_map(|v| v.to_array()));
+    h.update((m.indices.len() as u64).to_le_bytes());
+    let ints: Vec<u8> = m.indices.iter().flatten().chain(&m.material).flat_map(|i| i.to_le_bytes()).collect();
+    h.update(&ints);
+    // small parts: their Debug text (f32 Debug output is exact)
+    h.update(format!("{:?}{:?}", scene.materials, scene.lights).as_bytes());
+    for t in &scene.textures {
+        h.update(format!("{}x{} {:?} {:?}", t.width, t.height, t.wrap_u, t.wrap_v).as_bytes());
+        hash_f32s(&mut h, t.texels.iter().flat_map(|v| v.to_array()));
     }
-    Ok(())
+    match &scene.environment {
+        crate::scene::Environment::Map(map) => {
+            h.update(format!("map {}x{} {:?} {:?}", map.width, map.height, map.scale, map.to_world).as_bytes());
+            hash_f32s(&mut h, map.texels.iter().flat_map(|v| v.to_array()));
+        }
+        other => h.update(format!("{other:?}").as_bytes()),
+    }
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
 impl Plan {
     /// Read `scene_file` (a `.toml` scene description with `[trajectory]` and optional
     /// `[dataset]` / `[events]` tables), apply `overrides`, check everything and load the scene.
-    /// `exclude` lists folders inside the scene folder that are outputs (not hashed).
-    pub fn resolve(scene_file: &Path, overrides: &Overrides, exclude: &[&Path]) -> Result<Plan, DatasetError> {
+    pub fn resolve(scene_file: &Path, overrides: &Overrides) -> Result<Plan, DatasetError> {
         let text = std::fs::read_to_string(scene_file)
             .map_err(|e| DatasetError::io(scene_file, "cannot read the scene file", e))?;
         let desc = description::parse(&text, scene_file)?;
@@ -204,7 +199,7 @@ impl Plan {
             bad("camera", "missing: the field of view comes from the camera; add a [camera] table with fov".into())
         })?;
 
-        let scene_key = scene_key(scene_file, exclude)?;
+        let scene_key = scene_key(&scene);
         let render_key = sha256_hex(
             toml::to_string(&RenderIdentity {
                 pipeline_version: PIPELINE_VERSION,

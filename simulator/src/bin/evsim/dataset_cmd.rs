@@ -75,11 +75,7 @@ impl DatasetArgs {
 /// Run `evsim dataset`.
 pub fn run(args: &DatasetArgs) -> Result<()> {
     let start = Instant::now();
-    let mut exclude = vec![args.out.as_path()];
-    if let Some(c) = &args.frames_cache {
-        exclude.push(c.as_path());
-    }
-    let plan = Plan::resolve(&args.scene, &args.overrides(), &exclude)?;
+    let plan = Plan::resolve(&args.scene, &args.overrides())?;
     let c = &plan.config;
     let sharp = (0..plan.views.len()).filter(|&i| plan.is_sharp(i)).count();
     eprintln!(

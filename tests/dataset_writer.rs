@@ -1,0 +1,246 @@
+//! `evsim dataset` end to end on a tiny scene: the reference layout, no-op re-runs, conflicts,
+//! resume after an interruption, and the same bytes whatever the thread count.
+
+use std::path::{Path, PathBuf};
+
+use evblur_tests::temp_dir;
+use simulator::dataset::{write_dataset, DatasetError, Overrides, Plan, RunOptions};
+use simulator::npy::{read_npy, read_npz};
+
+/// The Cornell box of `scenes/cornell` with a short fast orbit and a tiny dataset table.
+fn tiny_scene(dir: &Path) -> PathBuf {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell");
+    for f in ["scene.obj", "scene.mtl"] {
+        std::fs::copy(src.join(f), dir.join(f)).unwrap();
+    }
+    let toml = dir.join("scene.toml");
+    std::fs::write(
+        &toml,
+        r#"scene = "scene.obj"
+[camera]
+origin = [0.0, 0.0, 3.9]
+target = [0.0, 0.0, 0.0]
+fov = 39.3077
+fov_axis = "y"
+[environment]
+type = "constant"
+radiance = [0.0, 0.0, 0.0]
+[trajectory]
+type = "fast_motion"
+target = [0.0, 0.0, 0.0]
+radius = 3.9
+sweep_deg = 20.0
+duration = 0.12
+[dataset]
+width = 48
+height = 32
+spp = 2
+sharp_spp = 4
+views = 9
+first_view_ms = 12.0
+exposure_ms = 8.0
+"#,
+    )
+    .unwrap();
+    toml
+}
+
+fn plan(toml: &Path) -> Plan {
+    Plan::resolve(toml, &Overrides::default()).unwrap()
+}
+
+fn opts(out: &Path, cache: Option<PathBuf>) -> RunOptions {
+    RunOptions { out: out.to_path_buf(), frames_cache: cache, ..RunOptions::default() }
+}
+
+/// Every file under `dir` (relative path, bytes), sorted, hidden entries skipped.
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.file_name().unwrap().to_string_lossy().starts_with('.') {
+                continue;
+            }
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push((p.strip_prefix(dir).unwrap().display().to_string(), std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+fn assert_same_files(a: &Path, b: &Path) {
+    let (fa, fb) = (files(a), files(b));
+    let names = |f: &[(String, Vec<u8>)]| f.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&fa), names(&fb));
+    for ((name, x), (_, y)) in fa.iter().zip(&fb) {
+        assert!(x == y, "{name} differs between {} and {}", a.display(), b.display());
+    }
+}
+
+#[test]
+fn tiny_dataset_has_the_reference_layout() {
+    let dir = temp_dir("dataset", "layout");
+    let toml = tiny_scene(&dir);
+    let plan = plan(&toml);
+    let out = dir.join("out");
+    let s = write_dataset(&plan, &opts(&out, None)).unwrap();
+    assert_eq!(s.frames, 120);
+    assert_eq!((s.frames_rendered, s.sharp_rendered), (120, 9));
+    assert!(s.events_on > 100 && s.events_off > 100, "{s:?}");
+    assert!(!out.join(".frames").exists(), "the default frame cache is removed after success");
+
+    // images: 9 views, 00..08, views 0 and 8 sharp
+    let names: Vec<String> = (0..9).map(|i| format!("{i:02}.png")).collect();
+    for n in &names {
+        for folder in ["images_1", "images_sharp_1"] {
+            let img = image::open(out.join(folder).join(n)).unwrap();
+            assert_eq!((img.width(), img.height()), (48, 32), "{folder}/{n}");
+            assert_eq!(img.color(), image::ColorType::Rgb8);
+        }
+    }
+    for sharp in ["00.png", "08.png"] {
+        assert_eq!(
+            std::fs::read(out.join("images_1").join(sharp)).unwrap(),
+            std::fs::read(out.join("images_sharp_1").join(sharp)).unwrap(),
+            "a sharp test view is its sharp render"
+        );
+    }
+    assert_ne!(std::fs::read(out.join("images_1/04.png")).unwrap(), std::fs::read(out.join("images_sharp_1/04.png")).unwrap());
+
+    // timestamps: us, strictly positive, sharp <=> start == end, every 8th sharp
+    let ts = read_npz(&out.join("images_1/timestamps.npz")).unwrap();
+    let get = |k: &str| ts.iter().find(|(n, _)| n == k).unwrap().1.as_f64().unwrap().to_vec();
+    let (mid, start, end) = (get("timestamps"), get("timestamps_start"), get("timestamps_end"));
+    assert_eq!(mid.len(), 9);
+    for i in 0..9 {
+        assert!(start[i] > 0.0 && start[i] <= mid[i] && mid[i] <= end[i]);
+        assert_eq!(start[i] == end[i], i % 8 == 0, "view {i}");
+        if i % 8 != 0 {
+            assert_eq!(end[i] - start[i], 8000.0, "8 ms exposure in us");
+        }
+    }
+    assert_eq!(mid[0], 12_000.0);
+
+    // poses: (9, 17) and (120, 17); pure rotations; hwf; honest bounds (the box is 3-6 m away)
+    let poses = read_npy(&out.join("poses_bounds.npy")).unwrap();
+    assert_eq!(poses.shape(), &[9, 17]);
+    let all = read_npy(&out.join("all_poses_bounds.npy")).unwrap();
+    assert_eq!(all.shape(), &[120, 17]);
+    for row in poses.as_f64().unwrap().chunks(17).chain(all.as_f64().unwrap().chunks(17)) {
+        let cam = simulator::trajectory::LlffCamera::from_row(row.try_into().unwrap()).unwrap();
+        assert_eq!((cam.height, cam.width), (32.0, 48.0));
+        assert!(cam.near > 2.0 && cam.near < 4.0 && cam.far > 4.5 && cam.far < 7.0, "{cam:?}");
+    }
+    let all_t = read_npy(&out.join("all_timestamps.npy")).unwrap();
+    let all_t = all_t.as_f64().unwrap();
+    assert_eq!(all_t.len(), 120);
+    assert!(all_t.windows(2).all(|w| w[1] - w[0] == 1000.0));
+    // the view's pose is the dense trajectory's pose at its mid-time (view 1 at frame 12 + 12)
+    let view_rows = poses.as_f64().unwrap();
+    let k = all_t.iter().position(|&t| t == mid[1]).unwrap();
+    assert_eq!(&view_rows[17..32], &all.as_f64().unwrap()[17 * k..17 * k + 15]);
+
+    // manifest and transforms
+    let manifest: toml::Value = toml::from_str(&std::fs::read_to_string(out.join("dataset.toml")).unwrap()).unwrap();
+    assert_eq!(manifest["settings_hash"].as_str().unwrap(), plan.settings_hash);
+    assert_eq!(manifest["events"].as_integer().unwrap() as u64, s.events_on + s.events_off);
+    let tj: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("transforms.json")).unwrap()).unwrap();
+    assert_eq!(tj["frames"].as_array().unwrap().len(), 9);
+    assert_eq!(tj["test_filenames"].as_array().unwrap().len(), 2);
+}
+
+#[test]
+fn rerun_is_a_noop_and_other_settings_conflict() {
+    let dir = temp_dir("dataset", "rerun");
+    let toml = tiny_scene(&dir);
+    let out = dir.join("out");
+    let p = plan(&toml);
+    write_dataset(&p, &opts(&out, None)).unwrap();
+    let before = files(&out);
+    let s = write_dataset(&p, &opts(&out, None)).unwrap();
+    assert!(s.already_complete && s.frames_rendered == 0);
+    assert_eq!(files(&out), before);
+
+    let other = Plan::resolve(&toml, &Overrides { exposure_ms: Some(4.0), ..Overrides::default() }).unwrap();
+    let e = write_dataset(&other, &opts(&out, None)).unwrap_err();
+    assert!(matches!(e, DatasetError::Conflict { .. }), "{e}");
+    assert!(e.to_string().contains("dataset.toml") && e.to_string().contains("other settings"), "{e}");
+}
+
+#[test]
+fn an_interrupted_run_resumes_to_the_same_bytes() {
+    let dir = temp_dir("dataset", "resume");
+    let toml = tiny_scene(&dir);
+    let p = plan(&toml);
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    write_dataset(&p, &opts(&a, None)).unwrap();
+
+    let mut o = opts(&b, None);
+    o.stop_after_renders = Some(50);
+    let e = write_dataset(&p, &o).unwrap_err();
+    assert!(matches!(e, DatasetError::Interrupted { frames: 50 }), "{e}");
+    assert!(!b.join("dataset.toml").exists(), "no manifest before the end");
+    let s = write_dataset(&p, &opts(&b, None)).unwrap();
+    assert_eq!((s.frames_rendered, s.sharp_rendered), (70, 9), "resumes after the 50 cached frames");
+    assert_same_files(&a, &b);
+
+    // a shared frame cache: an exposure or threshold change re-renders nothing but the sharp
+    // views it moves (none here: view times do not depend on the exposure when first_view_ms is set)
+    let cache = dir.join("cache");
+    write_dataset(&p, &opts(&dir.join("c"), Some(cache.clone()))).unwrap();
+    let swept = Overrides { exposure_ms: Some(4.0), threshold: Some(0.3), ..Overrides::default() };
+    let p2 = Plan::resolve(&toml, &swept).unwrap();
+    let s = write_dataset(&p2, &opts(&dir.join("d"), Some(cache))).unwrap();
+    assert_eq!((s.frames_rendered, s.sharp_rendered), (0, 0));
+}
+
+#[test]
+fn same_bytes_whatever_the_thread_count() {
+    let dir = temp_dir("dataset", "threads");
+    let toml = tiny_scene(&dir);
+    let p = plan(&toml);
+    let run = |threads: usize, out: PathBuf| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| write_dataset(&p, &opts(&out, None)).unwrap());
+    };
+    run(1, dir.join("one"));
+    run(3, dir.join("three"));
+    assert_same_files(&dir.join("one"), &dir.join("three"));
+}
+
+#[test]
+fn bad_settings_name_the_field() {
+    let dir = temp_dir("dataset", "bad");
+    let toml = tiny_scene(&dir);
+    let text = std::fs::read_to_string(&toml).unwrap();
+    let check = |edit: &dyn Fn(&str) -> String, want: &[&str]| {
+        std::fs::write(&toml, edit(&text)).unwrap();
+        let e = Plan::resolve(&toml, &Overrides::default()).unwrap_err().to_string();
+        for w in want {
+            assert!(e.contains(w), "{e:?} lacks {w:?}");
+        }
+    };
+    check(&|t| t.replace("exposure_ms = 8.0", "exposure_ms = -8.0"), &["scene.toml", "dataset.exposure_ms"]);
+    check(&|t| t.replace("exposure_ms = 8.0", "exposure_ms = nan"), &["dataset.exposure_ms"]);
+    check(&|t| t.replace("spp = 2", "spp = 0"), &["dataset.spp"]);
+    check(&|t| t.replace("views = 9", "views = 200"), &["dataset.views", "do not fit"]);
+    check(&|t| t.replace("first_view_ms = 12.0", "first_view_ms = 2.0"), &["dataset.first_view_ms"]);
+    check(&|t| t.replace("spp = 2\n", "spp = 2\nspeed = 3\n"), &["speed"]);
+    check(&|t| t.split("[trajectory]").next().unwrap().to_string(), &["trajectory", "missing"]);
+    check(&|t| t.replace("sharp_spp = 4", "sharp_spp = 1"), &["dataset.sharp_spp"]);
+    std::fs::write(&toml, &text).unwrap();
+    let e = Plan::resolve(&toml, &Overrides { threshold: Some(-0.1), ..Overrides::default() }).unwrap_err();
+    assert!(e.to_string().contains("events") && e.to_string().contains("c_pos"), "{e}");
+
+    // unwritable output: a file where the folder should be
+    let blocker = dir.join("blocker");
+    std::fs::write(&blocker, b"x").unwrap();
+    let e = write_dataset(&plan(&toml), &opts(&blocker.join("out"), None)).unwrap_err().to_string();
+    assert!(e.contains("blocker"), "{e}");
+}

@@ -111,7 +111,10 @@ fn tiny_dataset_has_the_reference_layout() {
             "a sharp test view is its sharp render"
         );
     }
-    assert_ne!(std::fs::read(out.join("images_1/04.png")).unwrap(), std::fs::read(out.join("images_sharp_1/04.png")).unwrap());
+    assert_ne!(
+        std::fs::read(out.join("images_1/04.png")).unwrap(),
+        std::fs::read(out.join("images_sharp_1/04.png")).unwrap()
+    );
 
     // timestamps: us, strictly positive, sharp <=> start == end, every 8th sharp
     let ts = read_npz(&out.join("images_1/timestamps.npz")).unwrap();
@@ -150,7 +153,8 @@ fn tiny_dataset_has_the_reference_layout() {
     let manifest: toml::Value = toml::from_str(&std::fs::read_to_string(out.join("dataset.toml")).unwrap()).unwrap();
     assert_eq!(manifest["settings_hash"].as_str().unwrap(), plan.settings_hash);
     assert_eq!(manifest["events"].as_integer().unwrap() as u64, s.events_on + s.events_off);
-    let tj: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("transforms.json")).unwrap()).unwrap();
+    let tj: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("transforms.json")).unwrap()).unwrap();
     assert_eq!(tj["frames"].as_array().unwrap().len(), 9);
     assert_eq!(tj["test_filenames"].as_array().unwrap().len(), 2);
 }

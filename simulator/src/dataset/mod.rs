@@ -8,12 +8,14 @@
 //! - [`depth`]: z-depth through pixel centres and the LLFF near/far bounds.
 //! - [`check`]: opens a dataset folder (ours or a public Ev-DeblurBlender one) and verifies
 //!   shapes, dtypes, sortedness, rotations, timestamps and the sharp/blurry marking.
+//! - [`noise`]: how many events path-tracing noise fires (a segment at spp vs 16x spp).
 //! - [`error`] holds [`DatasetError`].
 
 pub mod cache;
 pub mod check;
 pub mod depth;
 pub mod error;
+pub mod noise;
 pub mod plan;
 pub mod settings;
 pub mod writer;

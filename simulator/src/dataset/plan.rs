@@ -15,7 +15,6 @@
 
 use std::path::{Path, PathBuf};
 
-
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 

@@ -125,6 +125,8 @@ pub struct Overrides {
     pub views: Option<u32>,
     /// `[dataset] seed`.
     pub seed: Option<u64>,
+    /// `[dataset] noise_pattern`.
+    pub noise_pattern: Option<NoisePattern>,
 }
 
 impl Overrides {
@@ -147,5 +149,6 @@ impl Overrides {
         d.sharp_spp = self.sharp_spp.or(d.sharp_spp);
         d.views = self.views.unwrap_or(d.views);
         d.seed = self.seed.unwrap_or(d.seed);
+        d.noise_pattern = self.noise_pattern.unwrap_or(d.noise_pattern);
     }
 }

@@ -82,8 +82,15 @@ pub struct Summary {
     pub exposure_time: Duration,
     /// Wall time of depth bounds and metadata files.
     pub metadata_time: Duration,
-    /// Peak resident memory of the process (bytes), when the OS reports it.
-    pub peak_rss: Option<u64>,
+    /// Peak resident memory (bytes) of the process during the frame stages (render, events,
+    /// exposure), the sharp renders and the metadata, when the OS reports it (Linux).
+    pub peak_rss: [Option<u64>; 3],
+}
+
+/// Reset the peak resident set size (Linux: `5` into `/proc/self/clear_refs`), so that the next
+/// [`peak_rss`] covers only what follows. Best effort.
+pub fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
 
 /// Peak resident set size of this process (Linux `VmHWM`), bytes.
@@ -189,6 +196,7 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     // progress counts samples per pixel rendered or read, so the ETA weighs sharp renders
     pb.set_length(n_frames as u64 * c.spp as u64 + n_views as u64 * plan.sharp_spp as u64);
 
+    reset_peak_rss();
     let t = Instant::now();
     let renderer = Renderer::with_preset(&plan.scene, c.bvh);
     summary.render_time += t.elapsed();
@@ -276,7 +284,10 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     debug_assert_eq!(written, summary.events_on + summary.events_off);
     summary.events_time += t.elapsed();
 
+    summary.peak_rss[0] = peak_rss();
+
     // stage 4: sharp renders
+    reset_peak_rss();
     pb.set_message("sharp views");
     for view in &plan.views {
         let k = plan.clock.frame_at(view.mid_ns).expect("views lie on frame times");
@@ -307,7 +318,10 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
         summary.exposure_time += t.elapsed();
     }
 
+    summary.peak_rss[1] = peak_rss();
+
     // stage 5: metadata, manifest last
+    reset_peak_rss();
     pb.set_message("metadata");
     let t = Instant::now();
     write_metadata(plan, out, &frame_poses, &frame_bounds, &summary)?;
@@ -316,7 +330,7 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     if opts.frames_cache.is_none() && !opts.keep_frames {
         let _ = std::fs::remove_dir_all(&cache_root); // best effort: the dataset is complete
     }
-    summary.peak_rss = peak_rss();
+    summary.peak_rss[2] = peak_rss();
     Ok(summary)
 }
 

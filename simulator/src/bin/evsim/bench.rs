@@ -7,6 +7,10 @@
 //! 2. A 1 M-triangle scene: BVH build time and closest-hit M rays/s (primary and diffuse rays)
 //!    for every obvhs build preset.
 //!
+//! `evsim bench dataset [SCENE]`: writes the scene's whole dataset (default `scenes/cbox`, the
+//! paper's settings) into a fresh temporary folder and cache, and prints per stage the wall
+//! time, frames/s and peak memory, and the total.
+//!
 //! `evsim bench events`: the event model over 1000 frames of 600x400 of a synthetic moving
 //! texture (1000 FPS), events into a counting sink, once ideal and once with every
 //! non-ideality on. Prints the model time (frame generation excluded), the wall time, M pixel
@@ -42,6 +46,26 @@ pub enum BenchCommand {
     Render(RenderBench),
     /// Event-model throughput on a synthetic moving texture (ideal, then all noise on).
     Events(EventsBench),
+    /// A whole default-size dataset (1 s at 1000 FPS, 600x400, default spp): time, frames/s and
+    /// peak memory per stage.
+    Dataset(DatasetBench),
+}
+
+/// Options of `evsim bench dataset`.
+#[derive(Args, Debug)]
+pub struct DatasetBench {
+    /// The dataset scene.
+    #[arg(default_value = "scenes/cbox/scene.toml")]
+    pub scene: PathBuf,
+    /// Override [dataset] spp.
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Override [dataset] width.
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Override [dataset] height.
+    #[arg(long)]
+    pub height: Option<u32>,
 }
 
 /// Options of `evsim bench events`.
@@ -86,6 +110,7 @@ pub fn run(what: BenchCommand) -> Result<()> {
     match what {
         BenchCommand::Render(b) => render_bench(&b),
         BenchCommand::Events(b) => events_bench(&b),
+        BenchCommand::Dataset(b) => dataset_bench(&b),
     }
 }
 
@@ -351,5 +376,58 @@ fn events_bench(b: &EventsBench) -> Result<()> {
             max_change
         );
     }
+    Ok(())
+}
+
+/// `evsim bench dataset`.
+fn dataset_bench(b: &DatasetBench) -> Result<()> {
+    use simulator::dataset::{write_dataset, Overrides, Plan, RunOptions};
+    let overrides = Overrides { spp: b.spp, width: b.width, height: b.height, ..Overrides::default() };
+    let plan = Plan::resolve(&b.scene, &overrides)?;
+    let out = std::env::temp_dir().join(format!("evsim-bench-dataset-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let c = &plan.config;
+    let n = plan.clock.n_frames;
+    println!(
+        "dataset bench: {} ({} frames {}x{} at {} FPS, {} spp; {} views, sharp renders at {} spp), {} threads",
+        b.scene.display(),
+        n,
+        c.width,
+        c.height,
+        c.fps,
+        c.spp,
+        plan.views.len(),
+        plan.sharp_spp,
+        rayon::current_num_threads()
+    );
+    let start = Instant::now();
+    let s = write_dataset(&plan, &RunOptions { out: out.clone(), progress: true, ..RunOptions::default() })?;
+    let total = start.elapsed().as_secs_f64();
+    let _ = std::fs::remove_dir_all(&out);
+    let mb = |b: Option<u64>| b.map(|b| format!("{:.0} MB", b as f64 / 1e6)).unwrap_or_else(|| "n/a".into());
+    let fps = |d: std::time::Duration| n as f64 / d.as_secs_f64().max(1e-9);
+    println!("stage                          time      frames/s   peak memory");
+    println!(
+        "render frames + sharp views  {:8.1} s  {:9.2}   {} (frames stage), {} (sharp stage)",
+        s.render_time.as_secs_f64(),
+        fps(s.render_time),
+        mb(s.peak_rss[0]),
+        mb(s.peak_rss[1])
+    );
+    println!("events                       {:8.1} s  {:9.1}", s.events_time.as_secs_f64(), fps(s.events_time));
+    println!("exposure + PNG               {:8.1} s  {:9.1}", s.exposure_time.as_secs_f64(), fps(s.exposure_time));
+    println!(
+        "depth bounds + metadata      {:8.1} s  {:9.1}   {} (metadata stage)",
+        s.metadata_time.as_secs_f64(),
+        fps(s.metadata_time),
+        mb(s.peak_rss[2])
+    );
+    println!(
+        "total                        {:8.1} s  {:9.2}   ({:.1} min; {} events)",
+        total,
+        n as f64 / total,
+        total / 60.0,
+        s.events_on + s.events_off
+    );
     Ok(())
 }

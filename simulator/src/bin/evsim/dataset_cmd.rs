@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::Args;
 
-use simulator::dataset::{write_dataset, Overrides, Plan, RunOptions};
+use simulator::dataset::noise::{measure, NoiseOptions};
+use simulator::dataset::{write_dataset, NoisePattern, Overrides, Plan, RunOptions};
 
 /// Options of `evsim dataset`.
 #[derive(Args, Debug, Clone)]
@@ -43,6 +44,9 @@ pub struct DatasetArgs {
     /// Override [dataset] seed (renderer).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Override [dataset] noise_pattern.
+    #[arg(long, value_enum)]
+    pub noise_pattern: Option<NoisePattern>,
     /// Keep linear frames in this folder (shared between runs: exposure and event sweeps reuse
     /// them). Default: <out>/.frames, deleted after success.
     #[arg(long)]
@@ -68,6 +72,7 @@ impl DatasetArgs {
             sharp_spp: self.sharp_spp,
             views: self.views,
             seed: self.seed,
+            noise_pattern: self.noise_pattern,
         }
     }
 }
@@ -122,13 +127,119 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         s.sharp_rendered
     );
     println!(
-        "  time: render {:.1} s, cache read {:.1} s, events {:.1} s, exposure+png {:.1} s, depth+metadata {:.1} s; peak memory {}",
+        "  time: render {:.1} s, cache read {:.1} s, events {:.1} s, exposure+png {:.1} s, depth+metadata {:.1} s",
         secs(s.render_time),
         secs(s.cache_read_time),
         secs(s.events_time),
         secs(s.exposure_time),
         secs(s.metadata_time),
-        s.peak_rss.map(|b| format!("{:.0} MB", b as f64 / 1e6)).unwrap_or_else(|| "n/a".into())
+    );
+    let mb = |b: Option<u64>| b.map(|b| format!("{:.0} MB", b as f64 / 1e6)).unwrap_or_else(|| "n/a".into());
+    println!(
+        "  peak memory: frames {}, sharp renders {}, metadata {}",
+        mb(s.peak_rss[0]),
+        mb(s.peak_rss[1]),
+        mb(s.peak_rss[2])
+    );
+    Ok(())
+}
+
+/// Options of `evsim dataset-noise`.
+#[derive(Args, Debug, Clone)]
+pub struct NoiseArgs {
+    /// The scene file (as for `evsim dataset`).
+    pub scene: PathBuf,
+    /// Frames in the measured segment.
+    #[arg(long, default_value_t = 30)]
+    pub frames: usize,
+    /// Reference samples per pixel = factor x spp.
+    #[arg(long, default_value_t = 16)]
+    pub factor: u32,
+    /// Start of the segment (ms from the trajectory's start; default: its middle).
+    #[arg(long)]
+    pub start_ms: Option<f64>,
+    /// Width of the comparison windows (ms).
+    #[arg(long, default_value_t = 10.0)]
+    pub window_ms: f64,
+    /// Pool events over square blocks of this many pixels (1 = per pixel).
+    #[arg(long, default_value_t = 1)]
+    pub pool: u32,
+    /// Override [dataset] width (pixels).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Override [dataset] height (pixels).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Override [dataset] spp.
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Override [events] c_pos and c_neg.
+    #[arg(long)]
+    pub threshold: Option<f32>,
+    /// Override [dataset] noise_pattern.
+    #[arg(long, value_enum)]
+    pub noise_pattern: Option<NoisePattern>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Run `evsim dataset-noise`.
+pub fn run_noise(args: &NoiseArgs) -> Result<()> {
+    let overrides = Overrides {
+        width: args.width,
+        height: args.height,
+        spp: args.spp,
+        threshold: args.threshold,
+        noise_pattern: args.noise_pattern,
+        ..Overrides::default()
+    };
+    let plan = Plan::resolve(&args.scene, &overrides)?;
+    if !(args.window_ms > 0.0 && args.window_ms.is_finite()) {
+        anyhow::bail!("--window-ms {}: give a positive window in milliseconds", args.window_ms);
+    }
+    let start_frame = match args.start_ms {
+        Some(ms) if ms >= 0.0 && ms.is_finite() => Some((ms * 1e6 / plan.clock.dt_ns as f64).round() as usize),
+        Some(ms) => anyhow::bail!("--start-ms {ms}: give a time >= 0 in milliseconds"),
+        None => None,
+    };
+    let opts = NoiseOptions {
+        start_frame,
+        frames: args.frames,
+        factor: args.factor,
+        window_ns: (args.window_ms * 1e6).round() as i64,
+        pool: args.pool,
+        progress: !args.quiet,
+    };
+    let r = measure(&plan, &opts)?;
+    println!(
+        "{}: {} frames {}x{}, {:?} noise pattern, threshold {}: {} spp -> {} events, {} spp reference -> {} events",
+        args.scene.display(),
+        r.frames,
+        r.width,
+        r.height,
+        plan.config.noise_pattern,
+        plan.events.c_pos,
+        r.spp,
+        r.test_events,
+        r.ref_spp,
+        r.ref_events
+    );
+    println!(
+        "noise-induced events: {:.2}% of all events ({} not in the reference, {:.0} ms windows, {}x{} px blocks); missed: {:.2}%",
+        100.0 * r.noise_fraction(),
+        r.excess,
+        args.window_ms,
+        args.pool,
+        args.pool,
+        100.0 * r.missed_fraction()
+    );
+    println!(
+        "render time: {:.2} s per frame at {} spp, {:.2} s per frame at {} spp",
+        r.test_time.as_secs_f64() / r.frames as f64,
+        r.spp,
+        r.ref_time.as_secs_f64() / r.frames as f64,
+        r.ref_spp
     );
     Ok(())
 }

@@ -43,6 +43,8 @@ enum Command {
     Events(events_cmd::EventsArgs),
     /// Simulate an Ev-DeblurBlender dataset (blurry + sharp views, events, poses) from a scene file.
     Dataset(dataset_cmd::DatasetArgs),
+    /// Measure the events path-tracing noise fires: a segment at the dataset's spp vs 16x spp.
+    DatasetNoise(dataset_cmd::NoiseArgs),
     /// Benchmarks that print performance figures.
     Bench {
         #[command(subcommand)]
@@ -204,6 +206,7 @@ fn main() -> Result<()> {
         Command::Render(args) => render(&args),
         Command::Events(args) => events_cmd::run(&args),
         Command::Dataset(args) => dataset_cmd::run(&args),
+        Command::DatasetNoise(args) => dataset_cmd::run_noise(&args),
         Command::Bench { what } => bench::run(what),
     }
 }

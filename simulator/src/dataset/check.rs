@@ -49,7 +49,7 @@ impl TestViewPolicy {
     /// True if image `i` of `n` is a sharp test view under this policy (`Auto`: never asked).
     pub fn is_sharp(self, i: usize, n: usize) -> bool {
         match self {
-            TestViewPolicy::Every8 => i % 8 == 0,
+            TestViewPolicy::Every8 => i.is_multiple_of(8),
             TestViewPolicy::Last5 => i + 5 >= n,
             TestViewPolicy::Auto => false,
         }
@@ -183,6 +183,13 @@ pub enum CheckLine {
         /// What is lenient about it.
         detail: String,
     },
+    /// What a file holds, when it also has problems (so the counts are still shown).
+    Info {
+        /// The file.
+        check: String,
+        /// What was found.
+        detail: String,
+    },
     /// An optional file is not there.
     Absent {
         /// The file.
@@ -256,6 +263,7 @@ impl fmt::Display for CheckReport {
             match line {
                 CheckLine::Ok { check, detail } => writeln!(f, "  ok       {check}: {detail}")?,
                 CheckLine::Warning { check, detail } => writeln!(f, "  warning  {check}: {detail}")?,
+                CheckLine::Info { check, detail } => writeln!(f, "  info     {check}: {detail}")?,
                 CheckLine::Absent { file, detail } => writeln!(f, "  absent   {file} (optional): {detail}")?,
                 CheckLine::Problem(e) => writeln!(f, "  PROBLEM  {e}")?,
             }
@@ -278,6 +286,10 @@ impl Lines {
     /// A lenient form.
     pub fn warn(&mut self, check: impl Into<String>, detail: impl Into<String>) {
         self.0.push(CheckLine::Warning { check: check.into(), detail: detail.into() });
+    }
+    /// What a file holds, beside its problems.
+    pub fn info(&mut self, check: impl Into<String>, detail: impl Into<String>) {
+        self.0.push(CheckLine::Info { check: check.into(), detail: detail.into() });
     }
     /// A problem.
     pub fn problem(&mut self, e: CheckError) {

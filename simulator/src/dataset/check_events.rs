@@ -299,16 +299,16 @@ pub(super) fn check_events(
         lines.invalid(FILE, "p", "mixes 0 and -1 for OFF", "use either {0, 1} or {-1, +1}");
     }
     let t_range = (n > 0 && t_min <= t_max).then_some((t_min, t_max));
+    let detected = if opts.events_unit == EventsUnit::Auto { "auto-detected" } else { "given" };
+    let range = t_range.map_or("no events".to_string(), |(a, b)| format!("t {a}..{b} {unit}"));
+    let detail = format!(
+        "{n} events ({on} ON, {off} OFF), {range} (unit {unit}, {detected}); dtypes x {}, y {}, t {}, p {}",
+        x.dtype, y.dtype, t.dtype, p.dtype
+    );
     if lines.problem_count() == before {
-        let detected = if opts.events_unit == EventsUnit::Auto { "auto-detected" } else { "given" };
-        let range = t_range.map_or("no events".to_string(), |(a, b)| format!("t {a}..{b} {unit}"));
-        lines.ok(
-            FILE,
-            format!(
-                "{n} events ({on} ON, {off} OFF), {range} (unit {unit}, {detected}); dtypes x {}, y {}, t {}, p {}",
-                x.dtype, y.dtype, t.dtype, p.dtype
-            ),
-        );
+        lines.ok(FILE, detail);
+    } else {
+        lines.info(FILE, detail);
     }
     Some(EventSummary { count: n as u64, t_range, unit, on, off })
 }

@@ -39,7 +39,7 @@ fn row(s: f64) -> [f64; 17] {
 /// Exposure windows (us): mid 5000 + 9000 i, blurry +-2000, sharp every 8th.
 fn windows() -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let mid: Vec<f64> = (0..N).map(|i| 5000.0 + 9000.0 * i as f64).collect();
-    let half = |i: usize| if i % 8 == 0 { 0.0 } else { 2000.0 };
+    let half = |i: usize| if i.is_multiple_of(8) { 0.0 } else { 2000.0 };
     let start = (0..N).map(|i| mid[i] - half(i)).collect();
     let end = (0..N).map(|i| mid[i] + half(i)).collect();
     (mid, start, end)
@@ -208,6 +208,8 @@ fn unsorted_events_are_reported() {
     write_events(&dir, &events);
     let r = check(&dir);
     assert_problem(&r, &["events.h5: t: 1 event(s) go back in time, the first at index 11"]);
+    assert!(r.to_string().contains("info     events.h5: 500 events (167 ON, 333 OFF)"), "{r}");
+    assert_eq!(r.events.map(|e| e.count), Some(500));
 }
 
 #[test]

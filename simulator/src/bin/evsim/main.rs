@@ -3,6 +3,8 @@
 //! - `evsim render <scene> --spp N --out img.exr`: path-trace one image.
 //! - `evsim events --frames DIR --timestamps FILE --out events.h5`: the event model over a folder of
 //!   frames into an event file (.h5 Ev-DeblurNeRF or DSEC, .txt, .npz).
+//! - `evsim check <DIR> [--test-views every8|last5|auto] [--events-unit ns|us|auto]`: verify a
+//!   dataset folder against the Ev-DeblurBlender layout (non-zero exit on problems).
 //! - `evsim bench render`: render throughput (and the Mitsuba ratio when Mitsuba is installed),
 //!   BVH build time and ray throughput on a 1 M-triangle scene.
 
@@ -22,6 +24,7 @@ use simulator::render::sampler::SamplerKind;
 use simulator::scene::{self, Camera};
 
 mod bench;
+mod check_cmd;
 mod events_cmd;
 
 /// evblur simulator: render scenes (and, soon, event-camera datasets).
@@ -38,6 +41,8 @@ enum Command {
     Render(RenderArgs),
     /// Run the event model over a folder of frames (PNG or EXR) and write an event file.
     Events(events_cmd::EventsArgs),
+    /// Check a dataset folder against the Ev-DeblurBlender layout (images, timestamps, poses, events).
+    Check(check_cmd::CheckArgs),
     /// Benchmarks that print performance figures.
     Bench {
         #[command(subcommand)]
@@ -198,6 +203,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Render(args) => render(&args),
         Command::Events(args) => events_cmd::run(&args),
+        Command::Check(args) => check_cmd::run(&args),
         Command::Bench { what } => bench::run(what),
     }
 }

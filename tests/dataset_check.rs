@@ -3,8 +3,9 @@
 //! writers:
 //! - a dataset in the public style (h5py `events.h5` with int16/uint16, int64 or uint8/bool
 //!   columns, gzip or not; `np.savez` / `np.savez_compressed` timestamps; `np.save` poses, some
-//!   float32-rounded; event times in ns or us) passes our check, with the unit auto-detected,
-//!   and passes `read_dataset.py`;
+//!   float32-rounded; event times in ns or us; a CDAVIS-like one with float coordinates, the
+//!   last 5 views sharp and `ev_map.npz`) passes our check, with the unit and the test-view
+//!   policy auto-detected, and passes `read_dataset.py`;
 //! - a dataset written by our writers (npy/npz, `NerfH5Sink`, PNG) passes `read_dataset.py`, and
 //!   a wrong sharp marking fails both.
 //!
@@ -61,6 +62,9 @@ def row(s):
     return np.concatenate([m.ravel(), [0.5, 20.0]])
 mid = 5000.0 + 9000.0 * np.arange(N)
 half = np.where(np.arange(N) % 8 == 0, 0.0, 2000.0)
+if variant == "cdavis":   # real-camera scenes: the last 5 views are the sharp test views
+    half = np.where(np.arange(N) >= N - 5, 0.0, 2000.0)
+    np.savez(d + "/ev_map.npz", inv_mapx=np.zeros((H, W), np.float32), inv_mapy=np.ones((H, W), np.float32))
 save = np.savez_compressed if variant == "compressed" else np.savez
 save(d + "/images_1/timestamps.npz", timestamps=mid, timestamps_start=mid - half, timestamps_end=mid + half)
 poses = np.stack([row(t / 1e5) for t in mid])
@@ -78,6 +82,8 @@ if variant == "savez":
     cols = x.astype(np.int16), y.astype(np.uint16), t.astype(np.int64), on.astype(np.uint8)
 elif variant == "compressed":
     cols = x.astype(np.int64), y.astype(np.int64), t.astype(np.int64), on.astype(bool)
+elif variant == "cdavis":   # rectified float coordinates
+    cols = (x + 0.37).astype(np.float32), (y - 0.2).astype(np.float32), t.astype(np.int64), on.astype(np.uint8)
 else:   # "us": times in microseconds, polarity -1/+1
     cols = x.astype(np.uint16), y.astype(np.uint16), (t // 1000).astype(np.int64), np.where(on, 1, -1).astype(np.int8)
 kw = dict(compression="gzip", chunks=(64,)) if variant == "compressed" else {}
@@ -89,18 +95,27 @@ with h5py.File(d + "/events.h5", "w") as f:
 #[test]
 fn public_style_datasets_pass_the_check() {
     let Some(py) = python_with("h5py, numpy", "public_style_datasets_pass_the_check") else { return };
-    for (variant, unit) in [("savez", EventsUnit::Ns), ("compressed", EventsUnit::Ns), ("us", EventsUnit::Us)] {
+    let every8 = TestViewPolicy::Every8;
+    for (variant, unit, views) in [
+        ("savez", EventsUnit::Ns, every8),
+        ("compressed", EventsUnit::Ns, every8),
+        ("us", EventsUnit::Us, every8),
+        ("cdavis", EventsUnit::Ns, TestViewPolicy::Last5),
+    ] {
         let dir = temp_dir("dataset-check", &format!("public-{variant}"));
         write_pngs(&dir);
         run_python(&py, PUBLIC_STYLE, [dir.as_os_str(), variant.as_ref()]);
         let report = check_dataset(&dir, &CheckOptions::default()).unwrap();
         assert!(report.is_ok(), "{variant}:\n{report}");
-        assert_eq!(report.test_views, Some(TestViewPolicy::Every8), "{variant}");
+        assert_eq!(report.test_views, Some(views), "{variant}");
         let ev = report.events.clone().unwrap();
         assert_eq!((ev.count, ev.on, ev.off, ev.unit), (500, 167, 333, unit), "{variant}:\n{report}");
         let unit_arg = if unit == EventsUnit::Us { "us" } else { "ns" };
-        let (ok, text) = read_dataset(&py, &dir, &["--events-unit", unit_arg]);
-        assert!(ok && text.contains("read_dataset: ok: 10 images 8x6, 2 sharp, 100 dense poses, 500 events"), "{text}");
+        let views_arg = if views == TestViewPolicy::Last5 { "last5" } else { "every8" };
+        let (ok, text) = read_dataset(&py, &dir, &["--events-unit", unit_arg, "--test-views", views_arg]);
+        let sharp = if views == TestViewPolicy::Last5 { 5 } else { 2 };
+        let want = format!("read_dataset: ok: 10 images 8x6, {sharp} sharp, 100 dense poses, 500 events");
+        assert!(ok && text.contains(&want), "{variant}: {text}");
     }
 }
 

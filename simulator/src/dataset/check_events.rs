@@ -106,7 +106,10 @@ fn open_columns(file: &H5File, lines: &mut Lines) -> Option<[Column; 4]> {
             }
         };
         match kind_of(&dt) {
-            Ok(kind) => out.push(Column { name, ds, kind, dtype: dt.to_string() }),
+            Ok(kind) => {
+                let dtype = if matches!(kind, Kind::Enum1 { .. }) { format!("bool ({dt})") } else { dt.to_string() };
+                out.push(Column { name, ds, kind, dtype })
+            }
             Err(e) => lines.invalid(FILE, name, e, "store integers (or floats for rectified coordinates)"),
         }
     }
@@ -181,11 +184,12 @@ pub(super) fn check_events(
     let before = lines.problem_count();
     let cols = open_columns(&file, lines)?;
     let n = cols[0].ds.shape()[0];
-    if let Some(c) = cols.iter().find(|c| c.ds.shape()[0] != n) {
+    if cols.iter().any(|c| c.ds.shape()[0] != n) {
+        let lens: Vec<String> = cols.iter().map(|c| format!("{} {}", c.name, c.ds.shape()[0])).collect();
         lines.invalid(
             FILE,
-            c.name,
-            format!("{} events, but x has {n}", c.ds.shape()[0]),
+            "x, y, t, p",
+            format!("lengths differ ({})", lens.join(", ")),
             "write x, y, t, p of equal length",
         );
         return None;

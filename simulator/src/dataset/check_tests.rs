@@ -301,3 +301,59 @@ fn optional_files_are_checked_when_present() {
     assert_problem(&r, &["ev_map.npz: inv_mapy: shape [8, 6], expected (H, W) = Some([6, 8])"]);
     assert_eq!(r.problems().count(), 2, "{r}");
 }
+
+/// Write `events.h5` column by column (any dtypes), as other tools would.
+fn write_columns(dir: &Path, write: impl FnOnce(&rust_hdf5::H5File)) {
+    let path = dir.join("events.h5");
+    let _ = std::fs::remove_file(&path);
+    let file = rust_hdf5::H5File::create(&path).unwrap();
+    write(&file);
+    file.close().unwrap();
+}
+
+fn column<T: rust_hdf5::H5Type>(file: &rust_hdf5::H5File, name: &str, data: &[T]) {
+    file.new_dataset::<T>().shape([data.len()]).create(name).unwrap().write_raw(data).unwrap();
+}
+
+#[test]
+fn bad_event_columns_are_reported() {
+    let dir = fixture("columns");
+    let n = 20usize;
+    let t: Vec<i64> = (0..n as i64).map(|i| 2_000_000 + 1000 * i).collect();
+    // Other dtypes than ours are fine: int32 x, uint8 y, uint8 p in {0, 1}, float64 t.
+    write_columns(&dir, |f| {
+        column(f, "x", &vec![1i32; n]);
+        column(f, "y", &vec![2u8; n]);
+        column(f, "t", &t.iter().map(|&t| t as f64).collect::<Vec<_>>());
+        column(f, "p", &(0..n).map(|i| (i % 2) as u8).collect::<Vec<_>>());
+    });
+    let r = check(&dir);
+    assert!(r.is_ok(), "{r}");
+    assert_eq!(r.events.as_ref().map(|e| (e.on, e.off, e.unit)), Some((10, 10, EventsUnit::Ns)));
+    // p = 2, OFF as both 0 and -1, y = H, x of the wrong length.
+    write_columns(&dir, |f| {
+        column(f, "x", &vec![1i64; n + 1]);
+        column(f, "y", &vec![H as u16; n]);
+        column(f, "t", &t);
+        column(f, "p", &(0..n).map(|i| [0i8, -1, 1, 2][i % 4]).collect::<Vec<_>>());
+    });
+    let r = check(&dir);
+    assert_problem(&r, &["events.h5: x, y, t, p: lengths differ (x 21, y 20, t 20, p 20)"]);
+    write_columns(&dir, |f| {
+        column(f, "x", &vec![1i64; n]);
+        column(f, "y", &vec![H as u16; n]);
+        column(f, "t", &t);
+        column(f, "p", &(0..n).map(|i| [0i8, -1, 1, 2][i % 4]).collect::<Vec<_>>());
+    });
+    let r = check(&dir);
+    assert_problem(&r, &["events.h5: p: 5 event(s) are neither 0/1 nor -1/+1, the first at index 3 (p = 2)"]);
+    assert_problem(&r, &["events.h5: p: mixes 0 and -1 for OFF"]);
+    assert_problem(&r, &["events.h5: y: 20 event(s) are not in 0 <= y < 6, the first at index 0 (6)"]);
+    // A missing column.
+    write_columns(&dir, |f| {
+        column(f, "x", &vec![1u16; n]);
+        column(f, "y", &vec![1u16; n]);
+        column(f, "t", &t);
+    });
+    assert_problem(&check(&dir), &["events.h5: p: dataset missing"]);
+}

@@ -144,6 +144,13 @@ fn missing_files_are_each_reported() {
     assert_problem(&r, &["events.h5: missing"]);
     assert_problem(&r, &["all_timestamps.npy: missing"]);
     assert_eq!(r.problems().count(), 2, "{r}");
+    // Without images_1/ (and so its timestamps.npz) the other files are still checked.
+    std::fs::remove_dir_all(dir.join("images_1")).unwrap();
+    let r = check(&dir);
+    assert_problem(&r, &["images_1/: missing; write the blurry/sharp views as images_1/00.png"]);
+    assert_problem(&r, &["images_1/timestamps.npz: missing"]);
+    assert_eq!(r.problems().count(), 4, "{r}");
+    assert!(r.to_string().contains("ok       poses_bounds.npy: 10 rows x 17 float64"), "{r}");
     let e = check_dataset(&dir.join("nope"), &CheckOptions::default()).unwrap_err().to_string();
     assert!(e.contains("nope: cannot open the dataset folder"), "{e}");
 }

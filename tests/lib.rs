@@ -1,6 +1,8 @@
 //! Cross-crate and reference checks live in the test files beside this one:
 //! `mitsuba_reference.rs` (the path tracer against Mitsuba 3), `gltf_render.rs` (glTF end to
-//! end), `event_files.rs` and `npy_files.rs` (our files as h5py / numpy read them).
+//! end), `event_files.rs` and `npy_files.rs` (our files as h5py / numpy read them), `dataset_check.rs`
+//! (the dataset schema check against h5py/numpy-written folders, and `python/read_dataset.py`,
+//! the reference loader's reading, against ours).
 //!
 //! This library holds what those files share: fresh temp folders and the reference Python
 //! (the Mitsuba venv, which also has numpy and h5py), skipped or required by

@@ -7,12 +7,17 @@
 //! - [`writer`]: the pipeline: frames -> events, exposure, sharp renders, metadata, manifest.
 //! - [`depth`]: z-depth through pixel centres and the LLFF near/far bounds.
 //! - [`check`]: opens a dataset folder (ours or a public Ev-DeblurBlender one) and verifies
-//!   shapes, dtypes, sortedness, rotations, timestamps and the sharp/blurry marking.
+//!   shapes, dtypes, sortedness, rotations, timestamps and the sharp/blurry marking; its parts:
+//!   `check_images` (the PNG folders), `check_arrays` (the `.npy` / `.npz` files) and
+//!   `check_events` (`events.h5`, streamed in chunks).
 //! - [`noise`]: how many events path-tracing noise fires (a segment at spp vs 16x spp).
 //! - [`error`] holds [`DatasetError`].
 
 pub mod cache;
 pub mod check;
+mod check_arrays;
+mod check_events;
+mod check_images;
 pub mod depth;
 pub mod error;
 pub mod noise;

@@ -5,6 +5,8 @@
 //!   frames into an event file (.h5 Ev-DeblurNeRF or DSEC, .txt, .npz).
 //! - `evsim dataset scenes/<name>/scene.toml --out DIR`: a whole dataset (frames, events, blurry
 //!   and sharp views, poses, manifest), resumable.
+//! - `evsim check <DIR> [--test-views every8|last5|auto] [--events-unit ns|us|auto]`: verify a
+//!   dataset folder against the Ev-DeblurBlender layout (non-zero exit on problems).
 //! - `evsim bench render`: render throughput (and the Mitsuba ratio when Mitsuba is installed),
 //!   BVH build time and ray throughput on a 1 M-triangle scene.
 
@@ -25,6 +27,7 @@ use simulator::scene::{self, Camera};
 
 mod bench;
 mod dataset_cmd;
+mod check_cmd;
 mod events_cmd;
 
 /// evblur simulator: render scenes (and, soon, event-camera datasets).
@@ -45,6 +48,8 @@ enum Command {
     Dataset(dataset_cmd::DatasetArgs),
     /// Measure the events path-tracing noise fires: a segment at the dataset's spp vs 16x spp.
     DatasetNoise(dataset_cmd::NoiseArgs),
+    /// Check a dataset folder against the Ev-DeblurBlender layout (images, timestamps, poses, events).
+    Check(check_cmd::CheckArgs),
     /// Benchmarks that print performance figures.
     Bench {
         #[command(subcommand)]
@@ -207,6 +212,7 @@ fn main() -> Result<()> {
         Command::Events(args) => events_cmd::run(&args),
         Command::Dataset(args) => dataset_cmd::run(&args),
         Command::DatasetNoise(args) => dataset_cmd::run_noise(&args),
+        Command::Check(args) => check_cmd::run(&args),
         Command::Bench { what } => bench::run(what),
     }
 }

@@ -3,7 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use evblur_tests::temp_dir;
+use evblur_tests::{python_with, temp_dir};
+use simulator::dataset::check::{check_dataset, CheckOptions, EventsUnit, TestViewPolicy};
 use simulator::dataset::{write_dataset, DatasetError, Overrides, Plan, RunOptions};
 use simulator::npy::{read_npy, read_npz};
 
@@ -157,6 +158,26 @@ fn tiny_dataset_has_the_reference_layout() {
         serde_json::from_str(&std::fs::read_to_string(out.join("transforms.json")).unwrap()).unwrap();
     assert_eq!(tj["frames"].as_array().unwrap().len(), 9);
     assert_eq!(tj["test_filenames"].as_array().unwrap().len(), 2);
+
+    // the schema check (strict: every-8th policy, ns events) passes without warnings
+    let opts =
+        CheckOptions { test_views: TestViewPolicy::Every8, events_unit: EventsUnit::Ns, ..CheckOptions::default() };
+    let report = check_dataset(&out, &opts).unwrap();
+    assert!(report.is_ok() && report.warnings().count() == 0, "{report}");
+    assert_eq!(report.n_images, Some(9));
+    assert_eq!(report.events.as_ref().unwrap().count, s.events_on + s.events_off);
+
+    // and the reference loader's reading (numpy + h5py) accepts it
+    if let Some(py) = python_with("h5py, numpy", "dataset_writer: read_dataset.py") {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/read_dataset.py");
+        let o = std::process::Command::new(py).arg(script).arg(&out).output().unwrap();
+        let text = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+        let want = format!(
+            "read_dataset: ok: 9 images 48x32, 2 sharp, 120 dense poses, {} events",
+            s.events_on + s.events_off
+        );
+        assert!(o.status.success() && text.contains(&want), "{text}");
+    }
 }
 
 #[test]

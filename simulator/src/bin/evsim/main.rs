@@ -26,8 +26,8 @@ use simulator::render::sampler::SamplerKind;
 use simulator::scene::{self, Camera};
 
 mod bench;
-mod dataset_cmd;
 mod check_cmd;
+mod dataset_cmd;
 mod events_cmd;
 
 /// evblur simulator: render scenes (and, soon, event-camera datasets).

@@ -269,3 +269,27 @@ fn bad_settings_name_the_field() {
     let e = write_dataset(&plan(&toml), &opts(&blocker.join("out"), None)).unwrap_err().to_string();
     assert!(e.contains("blocker"), "{e}");
 }
+
+#[test]
+fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
+    use simulator::dataset::noise::{measure, NoiseOptions};
+    use simulator::dataset::NoisePattern;
+    let dir = temp_dir("dataset", "noise");
+    let toml = tiny_scene(&dir);
+    let opts = NoiseOptions { frames: 12, factor: 4, ..NoiseOptions::default() };
+    let run = |pattern| {
+        let p = Plan::resolve(&toml, &Overrides { noise_pattern: Some(pattern), ..Overrides::default() }).unwrap();
+        measure(&p, &opts).unwrap()
+    };
+    let (fixed, flicker) = (run(NoisePattern::Fixed), run(NoisePattern::PerFrame));
+    assert_eq!((fixed.frames, fixed.spp, fixed.ref_spp), (12, 2, 8));
+    assert!(fixed.test_events > 0 && fixed.ref_events > 0);
+    // per-frame noise at 2 spp fires more than twice the events of the (less noisy) 8 spp reference
+    assert!(flicker.test_events > 2 * flicker.ref_events, "{flicker:?}");
+    assert!(flicker.noise_fraction() > 0.5, "{flicker:?}");
+    // a fixed pattern fires an order of magnitude fewer events the reference lacks (the fractions
+    // are not comparable: the per-frame reference flickers too)
+    assert!(10 * fixed.excess < flicker.excess, "{fixed:?} vs {flicker:?}");
+    let bad = measure(&plan(&toml), &NoiseOptions { factor: 1, ..NoiseOptions::default() }).unwrap_err();
+    assert!(bad.to_string().contains("factor"), "{bad}");
+}

@@ -3,7 +3,10 @@
 //! pattern; both sequences go through the same event model, and the events are compared
 //! per pixel, polarity and time window.
 //!
-//! With `n_test(b)` and `n_ref(b)` the event counts in bin `b = (pixel, polarity, window)`:
+//! With `n_test(b)` and `n_ref(b)` the event counts in bin `b = (pixel, polarity, window)`
+//! (by default one window spans the whole segment: within it, *when* a pixel crosses a level
+//! depends on the phase of its reference level, which any difference in the first frame shifts,
+//! so finer windows also count timing jitter of real events):
 //! - *noise fraction* `sum_b max(0, n_test - n_ref) / sum_b n_test`: the share of the test events
 //!   the reference does not have (false events);
 //! - *missed fraction* `sum_b max(0, n_ref - n_test) / sum_b n_ref`: reference events the test
@@ -34,8 +37,8 @@ pub struct NoiseOptions {
     pub frames: usize,
     /// Reference samples per pixel = `factor * spp` (>= 2).
     pub factor: u32,
-    /// Width of the comparison windows (ns, > 0).
-    pub window_ns: i64,
+    /// Width of the comparison windows (ns, > 0); `None` = the whole segment.
+    pub window_ns: Option<i64>,
     /// Side of the square pixel blocks events are pooled over (1 = per pixel); 2 or 3 forgives
     /// an edge event landing one pixel over, which sub-pixel sampling differences cause.
     pub pool: u32,
@@ -45,7 +48,7 @@ pub struct NoiseOptions {
 
 impl Default for NoiseOptions {
     fn default() -> NoiseOptions {
-        NoiseOptions { start_frame: None, frames: 30, factor: 16, window_ns: 10_000_000, pool: 1, progress: false }
+        NoiseOptions { start_frame: None, frames: 30, factor: 16, window_ns: None, pool: 1, progress: false }
     }
 }
 
@@ -119,7 +122,7 @@ fn event_counts(
         sim.step(&img, t_ns, &mut sink).map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
         for e in &sink.events {
             let (bx, by) = (e.x as u32 / opts.pool, e.y as u32 / opts.pool);
-            let key = (by * c.width + bx, e.p > 0, (e.t_ns - t_start) / opts.window_ns);
+            let key = (by * c.width + bx, e.p > 0, (e.t_ns - t_start) / opts.window_ns.unwrap_or(i64::MAX));
             *counts.entry(key).or_insert(0) += 1;
             total += 1;
         }
@@ -131,7 +134,7 @@ fn event_counts(
 /// Measure the noise-induced events of `plan`'s settings on a segment (see the module docs).
 pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetError> {
     let bad = |field: &str, m: String| DatasetError::config(&plan.scene_file, field, m);
-    if opts.frames < 2 || opts.factor < 2 || opts.window_ns <= 0 || opts.pool == 0 {
+    if opts.frames < 2 || opts.factor < 2 || opts.window_ns.is_some_and(|w| w <= 0) || opts.pool == 0 {
         return Err(bad(
             "noise",
             "need at least 2 frames, a factor of at least 2, a positive window and a pool of at least 1 pixel".into(),

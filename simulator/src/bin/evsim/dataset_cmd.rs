@@ -158,9 +158,9 @@ pub struct NoiseArgs {
     /// Start of the segment (ms from the trajectory's start; default: its middle).
     #[arg(long)]
     pub start_ms: Option<f64>,
-    /// Width of the comparison windows (ms).
-    #[arg(long, default_value_t = 10.0)]
-    pub window_ms: f64,
+    /// Width of the comparison windows (ms); default: the whole segment.
+    #[arg(long)]
+    pub window_ms: Option<f64>,
     /// Pool events over square blocks of this many pixels (1 = per pixel).
     #[arg(long, default_value_t = 1)]
     pub pool: u32,
@@ -195,8 +195,8 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         ..Overrides::default()
     };
     let plan = Plan::resolve(&args.scene, &overrides)?;
-    if !(args.window_ms > 0.0 && args.window_ms.is_finite()) {
-        anyhow::bail!("--window-ms {}: give a positive window in milliseconds", args.window_ms);
+    if let Some(w) = args.window_ms.filter(|w| !(*w > 0.0 && w.is_finite())) {
+        anyhow::bail!("--window-ms {w}: give a positive window in milliseconds");
     }
     let start_frame = match args.start_ms {
         Some(ms) if ms >= 0.0 && ms.is_finite() => Some((ms * 1e6 / plan.clock.dt_ns as f64).round() as usize),
@@ -207,7 +207,7 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         start_frame,
         frames: args.frames,
         factor: args.factor,
-        window_ns: (args.window_ms * 1e6).round() as i64,
+        window_ns: args.window_ms.map(|w| (w * 1e6).round() as i64),
         pool: args.pool,
         progress: !args.quiet,
     };
@@ -226,10 +226,10 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         r.ref_events
     );
     println!(
-        "noise-induced events: {:.2}% of all events ({} not in the reference, {:.0} ms windows, {}x{} px blocks); missed: {:.2}%",
+        "noise-induced events: {:.2}% of all events ({} not in the reference per {} and {}x{} px block); missed: {:.2}%",
         100.0 * r.noise_fraction(),
         r.excess,
-        args.window_ms,
+        args.window_ms.map(|w| format!("{w} ms window")).unwrap_or_else(|| "segment".into()),
         args.pool,
         args.pool,
         100.0 * r.missed_fraction()

@@ -90,6 +90,9 @@ impl NoiseReport {
     }
 }
 
+/// Event counts per (pixel block, polarity is ON, window).
+type BinCounts = std::collections::HashMap<(u32, bool, i64), u32>;
+
 /// Per-(pixel, polarity, window) event counts of a sequence rendered at `spp`.
 fn event_counts(
     plan: &Plan,
@@ -98,7 +101,7 @@ fn event_counts(
     spp: u32,
     opts: &NoiseOptions,
     pb: &ProgressBar,
-) -> Result<(std::collections::HashMap<(u32, bool, i64), u32>, u64), DatasetError> {
+) -> Result<(BinCounts, u64), DatasetError> {
     let c = &plan.config;
     let mut sim = EventSimulator::new(plan.events.clone(), c.width, c.height)
         .map_err(|e| DatasetError::config(&plan.scene_file, "events", e.to_string()))?;

@@ -226,22 +226,12 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
         let t_ns = plan.clock.time_ns(k);
         let pose = plan.trajectory.pose_at(t_ns).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
         let path = cache.frame_path(c.fps, c.spp, c.noise_pattern, k);
-        let t = Instant::now();
-        let frame = match FrameCache::load(&path)? {
-            Some(img) if img.width == w && img.height == h => {
-                summary.cache_read_time += t.elapsed();
-                img
-            }
-            _ => {
-                let mut img = renderer.render(&render_settings(plan, &pose, k, false), None);
-                round_to_f16(&mut img);
-                FrameCache::store(&path, &img)?;
-                summary.frames_rendered += 1;
-                summary.render_time += t.elapsed();
-                count_render(&mut summary)?;
-                img
-            }
-        };
+        let (frame, rendered) =
+            cached_or_rendered(&renderer, &path, &render_settings(plan, &pose, k, false), &mut summary)?;
+        if rendered {
+            summary.frames_rendered += 1;
+            count_render(&mut summary)?;
+        }
         pb.inc(c.spp as u64);
 
         // depth bounds of this frame's camera
@@ -292,22 +282,12 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     for view in &plan.views {
         let k = plan.clock.frame_at(view.mid_ns).expect("views lie on frame times");
         let path = cache.sharp_path(plan.sharp_spp, view.mid_ns);
-        let t = Instant::now();
-        let img = match FrameCache::load(&path)? {
-            Some(img) if img.width == w && img.height == h => {
-                summary.cache_read_time += t.elapsed();
-                img
-            }
-            _ => {
-                let mut img = renderer.render(&render_settings(plan, &frame_poses[k], k, true), None);
-                round_to_f16(&mut img);
-                FrameCache::store(&path, &img)?;
-                summary.sharp_rendered += 1;
-                summary.render_time += t.elapsed();
-                count_render(&mut summary)?;
-                img
-            }
-        };
+        let (img, rendered) =
+            cached_or_rendered(&renderer, &path, &render_settings(plan, &frame_poses[k], k, true), &mut summary)?;
+        if rendered {
+            summary.sharp_rendered += 1;
+            count_render(&mut summary)?;
+        }
         pb.inc(plan.sharp_spp as u64);
         let t = Instant::now();
         let name = image_name(view.id, n_views);
@@ -332,6 +312,26 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     }
     summary.peak_rss[2] = peak_rss();
     Ok(summary)
+}
+
+/// The cached image at `path` (when it has the right size), else a fresh render of `settings`,
+/// rounded to halves and cached; `true` when rendered. Adds the time to `summary`.
+fn cached_or_rendered(
+    renderer: &Renderer,
+    path: &Path,
+    settings: &RenderSettings,
+    summary: &mut Summary,
+) -> Result<(Image, bool), DatasetError> {
+    let t = Instant::now();
+    if let Some(img) = FrameCache::load(path)?.filter(|i| (i.width, i.height) == (settings.width, settings.height)) {
+        summary.cache_read_time += t.elapsed();
+        return Ok((img, false));
+    }
+    let mut img = renderer.render(settings, None);
+    round_to_f16(&mut img);
+    FrameCache::store(path, &img)?;
+    summary.render_time += t.elapsed();
+    Ok((img, true))
 }
 
 /// Encode a linear view through the camera response (with the gain) and write it atomically.

@@ -57,15 +57,9 @@ pub struct DatasetBench {
     /// The dataset scene.
     #[arg(default_value = "scenes/cbox/scene.toml")]
     pub scene: PathBuf,
-    /// Override [dataset] spp.
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Override [dataset] width.
-    #[arg(long)]
-    pub width: Option<u32>,
-    /// Override [dataset] height.
-    #[arg(long)]
-    pub height: Option<u32>,
+    /// Settings overrides.
+    #[command(flatten)]
+    pub overrides: crate::dataset_cmd::OverrideArgs,
 }
 
 /// Options of `evsim bench events`.
@@ -381,9 +375,8 @@ fn events_bench(b: &EventsBench) -> Result<()> {
 
 /// `evsim bench dataset`.
 fn dataset_bench(b: &DatasetBench) -> Result<()> {
-    use simulator::dataset::{write_dataset, Overrides, Plan, RunOptions};
-    let overrides = Overrides { spp: b.spp, width: b.width, height: b.height, ..Overrides::default() };
-    let plan = Plan::resolve(&b.scene, &overrides)?;
+    use simulator::dataset::{write_dataset, Plan, RunOptions};
+    let plan = Plan::resolve(&b.scene, &b.overrides.resolve())?;
     let out = std::env::temp_dir().join(format!("evsim-bench-dataset-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let c = &plan.config;

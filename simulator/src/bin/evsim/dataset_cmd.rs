@@ -17,6 +17,24 @@ pub struct DatasetArgs {
     /// The dataset folder to write (created; an interrupted run in it is resumed).
     #[arg(long)]
     pub out: PathBuf,
+    /// Settings overrides.
+    #[command(flatten)]
+    pub overrides: OverrideArgs,
+    /// Keep linear frames in this folder (shared between runs: exposure and event sweeps reuse
+    /// them). Default: <out>/.frames, deleted after success.
+    #[arg(long)]
+    pub frames_cache: Option<PathBuf>,
+    /// Keep the default frame cache (<out>/.frames) after success.
+    #[arg(long)]
+    pub keep_frames: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Command-line overrides of a scene file's `[dataset]` and `[events]` settings.
+#[derive(Args, Debug, Clone, Default)]
+pub struct OverrideArgs {
     /// Override [dataset] exposure_ms: shutter time of the blurry views (ms).
     #[arg(long)]
     pub exposure_ms: Option<f64>,
@@ -47,21 +65,11 @@ pub struct DatasetArgs {
     /// Override [dataset] noise_pattern.
     #[arg(long, value_enum)]
     pub noise_pattern: Option<NoisePattern>,
-    /// Keep linear frames in this folder (shared between runs: exposure and event sweeps reuse
-    /// them). Default: <out>/.frames, deleted after success.
-    #[arg(long)]
-    pub frames_cache: Option<PathBuf>,
-    /// Keep the default frame cache (<out>/.frames) after success.
-    #[arg(long)]
-    pub keep_frames: bool,
-    /// No progress bar.
-    #[arg(long)]
-    pub quiet: bool,
 }
 
-impl DatasetArgs {
-    /// The command-line overrides.
-    pub fn overrides(&self) -> Overrides {
+impl OverrideArgs {
+    /// The library's overrides.
+    pub fn resolve(&self) -> Overrides {
         Overrides {
             exposure_ms: self.exposure_ms,
             fps: self.fps,
@@ -80,7 +88,7 @@ impl DatasetArgs {
 /// Run `evsim dataset`.
 pub fn run(args: &DatasetArgs) -> Result<()> {
     let start = Instant::now();
-    let plan = Plan::resolve(&args.scene, &args.overrides())?;
+    let plan = Plan::resolve(&args.scene, &args.overrides.resolve())?;
     let c = &plan.config;
     let sharp = (0..plan.views.len()).filter(|&i| plan.is_sharp(i)).count();
     eprintln!(
@@ -164,21 +172,9 @@ pub struct NoiseArgs {
     /// Pool events over square blocks of this many pixels (1 = per pixel).
     #[arg(long, default_value_t = 1)]
     pub pool: u32,
-    /// Override [dataset] width (pixels).
-    #[arg(long)]
-    pub width: Option<u32>,
-    /// Override [dataset] height (pixels).
-    #[arg(long)]
-    pub height: Option<u32>,
-    /// Override [dataset] spp.
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Override [events] c_pos and c_neg.
-    #[arg(long)]
-    pub threshold: Option<f32>,
-    /// Override [dataset] noise_pattern.
-    #[arg(long, value_enum)]
-    pub noise_pattern: Option<NoisePattern>,
+    /// Settings overrides.
+    #[command(flatten)]
+    pub overrides: OverrideArgs,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -186,14 +182,7 @@ pub struct NoiseArgs {
 
 /// Run `evsim dataset-noise`.
 pub fn run_noise(args: &NoiseArgs) -> Result<()> {
-    let overrides = Overrides {
-        width: args.width,
-        height: args.height,
-        spp: args.spp,
-        threshold: args.threshold,
-        noise_pattern: args.noise_pattern,
-        ..Overrides::default()
-    };
+    let overrides = args.overrides.resolve();
     let plan = Plan::resolve(&args.scene, &overrides)?;
     if let Some(w) = args.window_ms.filter(|w| !(*w > 0.0 && w.is_finite())) {
         anyhow::bail!("--window-ms {w}: give a positive window in milliseconds");

@@ -206,6 +206,11 @@ fn an_interrupted_run_resumes_to_the_same_bytes() {
     let (a, b) = (dir.join("a"), dir.join("b"));
     write_dataset(&p, &opts(&a, None)).unwrap();
 
+    // an earlier interrupted run with more views left images 09..11 behind: they must go
+    for extra in ["09.png", "10.png", "11.png"] {
+        std::fs::create_dir_all(b.join("images_1")).unwrap();
+        std::fs::write(b.join("images_1").join(extra), b"stale").unwrap();
+    }
     let mut o = opts(&b, None);
     o.stop_after_renders = Some(50);
     let e = write_dataset(&p, &o).unwrap_err();

@@ -180,6 +180,7 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     }
     for dir in [&images, &sharp_dir] {
         std::fs::create_dir_all(dir).map_err(|e| DatasetError::io(dir, "cannot create (choose another --out)", e))?;
+        remove_stale_images(dir, n_views)?;
     }
     let cache_root = opts.frames_cache.clone().unwrap_or_else(|| out.join(".frames"));
     let cache = FrameCache::open(&cache_root, plan)?;
@@ -312,6 +313,21 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     }
     summary.peak_rss[2] = peak_rss();
     Ok(summary)
+}
+
+/// Delete the PNGs in `dir` that are not views of this dataset (left by an interrupted run with
+/// more views), so that the folder never mixes two datasets.
+fn remove_stale_images(dir: &Path, n_views: usize) -> Result<(), DatasetError> {
+    let keep: std::collections::HashSet<String> = (0..n_views).map(|i| image_name(i, n_views)).collect();
+    let entries = std::fs::read_dir(dir).map_err(|e| DatasetError::io(dir, "cannot list", e))?;
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.ends_with(".png") && !keep.contains(&name) {
+            std::fs::remove_file(entry.path())
+                .map_err(|e| DatasetError::io(entry.path(), "cannot remove a stale image of an earlier run", e))?;
+        }
+    }
+    Ok(())
 }
 
 /// The cached image at `path` (when it has the right size), else a fresh render of `settings`,

@@ -5,6 +5,7 @@
 //! - [`plan`]: scene file + overrides -> a checked [`Plan`] (frame clock, views, content keys).
 //! - [`cache`]: the half-float EXR frame cache (resume, and sweeps without re-rendering).
 //! - [`writer`]: the pipeline: frames -> events, exposure, sharp renders, metadata, manifest.
+//! - [`blur`]: how far image content moves during each exposure (mean / max pixel displacement).
 //! - [`depth`]: z-depth through pixel centres and the LLFF near/far bounds.
 //! - [`check`]: opens a dataset folder (ours or a public Ev-DeblurBlender one) and verifies
 //!   shapes, dtypes, sortedness, rotations, timestamps and the sharp/blurry marking; its parts:
@@ -13,6 +14,7 @@
 //! - [`noise`]: how many events path-tracing noise fires (a segment at spp vs 16x spp).
 //! - [`error`] holds [`DatasetError`].
 
+pub mod blur;
 pub mod cache;
 pub mod check;
 mod check_arrays;

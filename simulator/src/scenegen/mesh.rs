@@ -89,7 +89,8 @@ pub fn plane(m: &mut MeshData, xf: Affine3A, size: Vec2, segments: [u32; 2], til
 
 /// A grid in the local XZ plane displaced along +Y by `height(u, v)` (m), `u, v` in [0, 1]
 /// across `size` = (x, z) (m) from the -X, -Z corner. Normals come from central differences of
-/// `height` at one cell's spacing. UVs are the undisplaced XZ position / `tile`.
+/// `height` at one cell's spacing (so `height` is also called up to one cell outside [0, 1]).
+/// UVs are the undisplaced XZ position / `tile`.
 pub fn heightfield(
     m: &mut MeshData,
     xf: Affine3A,

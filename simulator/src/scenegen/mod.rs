@@ -65,9 +65,21 @@ pub fn find(name: &str) -> Option<&'static SceneSpec> {
 }
 
 /// Write `scene` into `dir`: `scene.gltf`, `scene.bin`, `textures/*.png`, then `scene.toml`
-/// (last, atomically), so a folder with a `scene.toml` is complete.
+/// (last, atomically), so a folder with a `scene.toml` is complete. The generator owns
+/// `dir/textures/`: PNG files there that this scene no longer writes are removed, so a folder
+/// regenerated after a change holds exactly the new scene.
 pub fn write_scene(dir: &Path, scene: &GeneratedScene) -> Result<WrittenScene> {
     let written = scene.builder.write(dir, "scene")?;
+    let tex_dir = dir.join("textures");
+    if let Ok(entries) = std::fs::read_dir(&tex_dir) {
+        for entry in entries {
+            let path = entry?.path();
+            if path.extension().is_some_and(|e| e == "png") && !written.textures.contains(&path) {
+                std::fs::remove_file(&path)
+                    .with_context(|| format!("{}: cannot remove a stale texture", path.display()))?;
+            }
+        }
+    }
     crate::image_io::write_atomic(&dir.join("scene.toml"), scene.toml.as_bytes())
         .with_context(|| format!("{}: writing scene.toml", dir.display()))?;
     Ok(written)
@@ -113,6 +125,60 @@ mod tests {
             let mean = img.mean();
             assert!(mean.is_finite() && mean.min_element() > 0.01, "{}: mean {mean}", spec.name);
         }
+    }
+
+    /// A scene folder committed under `scenes/` holds exactly what its generator writes now
+    /// (same files, same bytes), so it never goes stale.
+    #[test]
+    fn committed_scene_folders_match_their_generators() {
+        let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+        let files = |d: &Path| -> Vec<(String, Vec<u8>)> {
+            let mut out = Vec::new();
+            for sub in [d.to_path_buf(), d.join("textures")] {
+                let Ok(entries) = std::fs::read_dir(&sub) else { continue };
+                for e in entries.map(|e| e.unwrap().path()).filter(|p| p.is_file()) {
+                    let rel = e.strip_prefix(d).unwrap().to_string_lossy().into_owned();
+                    out.push((rel, std::fs::read(&e).unwrap()));
+                }
+            }
+            out.sort();
+            out
+        };
+        for spec in registry() {
+            let committed = scenes.join(spec.name);
+            if !committed.join("scene.toml").exists() {
+                continue;
+            }
+            let fresh = gltf_write::tests::temp_dir(&format!("fresh-{}", spec.name));
+            write_scene(&fresh, &(spec.build)()).unwrap();
+            let (a, b) = (files(&committed), files(&fresh));
+            let names = |v: &[(String, Vec<u8>)]| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
+            assert_eq!(
+                names(&a),
+                names(&b),
+                "scenes/{}: regenerate with `evsim scene generate --only {}`",
+                spec.name,
+                spec.name
+            );
+            for ((name, x), (_, y)) in a.iter().zip(&b) {
+                assert!(
+                    x == y,
+                    "scenes/{}/{name} is stale: regenerate with `evsim scene generate --only {}`",
+                    spec.name,
+                    spec.name
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn stale_textures_are_removed_on_rewrite() {
+        let dir = gltf_write::tests::temp_dir("stale");
+        std::fs::create_dir_all(dir.join("textures")).unwrap();
+        std::fs::write(dir.join("textures/99_old.png"), b"old").unwrap();
+        let w = write_scene(&dir, &demo::gen_demo()).unwrap();
+        assert!(!dir.join("textures/99_old.png").exists());
+        assert!(w.textures.iter().all(|t| t.exists()));
     }
 
     #[test]

@@ -217,6 +217,17 @@ pub fn fbm(width: u32, height: u32, f: &Fbm, stops: &[(f32, Srgb)]) -> RgbImage 
     RgbImage::from_fn(width, height, |x, y| Rgb(ramp(stops, v[(y * width + x) as usize])))
 }
 
+/// Copy `src` onto `dst` with its top-left corner at (`x`, `y`), clipped to `dst` (e.g. a sign
+/// or a poster pasted on a wall texture).
+pub fn blit(dst: &mut RgbImage, src: &RgbImage, x: i64, y: i64) {
+    for (sx, sy, p) in src.enumerate_pixels() {
+        let (dx, dy) = (x + sx as i64, y + sy as i64);
+        if (0..dst.width() as i64).contains(&dx) && (0..dst.height() as i64).contains(&dy) {
+            dst.put_pixel(dx as u32, dy as u32, *p);
+        }
+    }
+}
+
 /// Darken `img` by fBm grime: each pixel is scaled by `1 - strength * noise` (noise in [0, 1]).
 pub fn grime(img: &mut RgbImage, f: &Fbm, strength: f32) {
     let v = fbm_values(img.width(), img.height(), f);
@@ -506,6 +517,14 @@ mod tests {
         // a text page has text
         let page = text_page(64, 64, 1, [0; 3], [255; 3], 2, 5);
         assert!(page.pixels().filter(|p| p.0 == [0; 3]).count() > 200);
+    }
+
+    #[test]
+    fn blit_copies_and_clips() {
+        let mut dst = RgbImage::from_pixel(4, 4, Rgb([0; 3]));
+        blit(&mut dst, &RgbImage::from_pixel(3, 3, Rgb([9; 3])), 2, -1);
+        let lit: Vec<(u32, u32)> = dst.enumerate_pixels().filter(|p| p.2 .0 == [9; 3]).map(|p| (p.0, p.1)).collect();
+        assert_eq!(lit, vec![(2, 0), (3, 0), (2, 1), (3, 1)]);
     }
 
     #[test]

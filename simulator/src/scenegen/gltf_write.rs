@@ -13,6 +13,12 @@
 //!   spec keeps `emissiveFactor` in [0, 1]); the product, which is what we render, is kept.
 //! - textures as 8-bit PNG files under `textures/`, one sampler per wrap mode (linear filters).
 //! - an optional perspective camera on its own node (matrix = camera-to-world).
+//! - punctual lights ([`PunctualLight`], `KHR_lights_punctual`), each on a node whose local -Z
+//!   is the light's direction; `color * intensity` is the radiometric power our loader reads back
+//!   (the colour is normalised to a largest channel of 1, the rest goes into the intensity).
+//!
+//! The loader decodes only textures that a material uses (a texture used in both a colour and a
+//! data slot is decoded twice), so unused textures are written but not loaded.
 //!
 //! Output is deterministic: JSON keys are sorted (serde_json's default map), floats are written
 //! as the shortest decimal that reads back to the same `f32`, and PNG encoding has no timestamps.
@@ -22,11 +28,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat4, Quat, Vec2, Vec3};
 use serde_json::{json, Map, Value};
 
 use crate::image_io::write_atomic;
-use crate::scene::WrapMode;
+use crate::scene::{PunctualLight, WrapMode};
 
 /// Index of a mesh in a [`SceneBuilder`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -224,6 +230,8 @@ pub struct SceneBuilder {
     pub textures: Vec<TextureDesc>,
     /// Optional camera.
     pub camera: Option<PerspectiveCamera>,
+    /// Point, spot and directional lights (the loader's [`PunctualLight`], world space).
+    pub lights: Vec<PunctualLight>,
 }
 
 impl SceneBuilder {
@@ -259,6 +267,11 @@ impl SceneBuilder {
     /// Set (or replace) the camera.
     pub fn set_camera(&mut self, camera: PerspectiveCamera) {
         self.camera = Some(camera);
+    }
+
+    /// Add a point, spot or directional light.
+    pub fn add_light(&mut self, light: PunctualLight) {
+        self.lights.push(light);
     }
 
     /// Total number of triangles over all meshes.
@@ -313,6 +326,25 @@ impl SceneBuilder {
                 m.positions.iter().chain(&m.normals).all(|v| v.is_finite()) && m.uvs.iter().all(|v| v.is_finite());
             if !finite {
                 bail!("{el}: non-finite position, normal or uv; check the transform and parameters");
+            }
+        }
+        for (i, l) in self.lights.iter().enumerate() {
+            let (power, dir) = match l {
+                PunctualLight::Point { intensity, .. } => (*intensity, Vec3::NEG_Z),
+                PunctualLight::Spot { direction, intensity, inner_cone, outer_cone, .. } => {
+                    if !(0.0 <= *inner_cone && inner_cone < outer_cone && *outer_cone <= std::f32::consts::FRAC_PI_2) {
+                        bail!("light {i}: spot cone angles must satisfy 0 <= inner < outer <= pi/2");
+                    }
+                    (*intensity, *direction)
+                }
+                PunctualLight::Directional { direction, irradiance } => (*irradiance, *direction),
+            };
+            let pos = match l {
+                PunctualLight::Point { position, .. } | PunctualLight::Spot { position, .. } => *position,
+                PunctualLight::Directional { .. } => Vec3::ZERO,
+            };
+            if !(power.is_finite() && power.min_element() >= 0.0 && pos.is_finite() && dir.length() > 0.0) {
+                bail!("light {i}: power must be finite and non-negative, position finite, direction non-zero");
             }
         }
         if let Some(c) = &self.camera {
@@ -374,7 +406,28 @@ impl SceneBuilder {
             let matrix: Vec<Value> = c.to_world.to_cols_array().into_iter().map(num).collect();
             nodes.push(json!({"name": c.name, "camera": 0, "matrix": matrix}));
         }
-        let (materials, used) = self.materials_json();
+        let (materials, mut used) = self.materials_json();
+        if !self.lights.is_empty() {
+            let mut lights = Vec::new();
+            for (i, l) in self.lights.iter().enumerate() {
+                let (json, position, direction) = light_json(l);
+                lights.push(json);
+                // the node's local -Z is the light direction
+                let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, direction.normalize());
+                let mut node = json!({
+                    "name": format!("light_{i}"),
+                    "extensions": {"KHR_lights_punctual": {"light": i}},
+                    "rotation": rotation.to_array().map(num),
+                });
+                if position != Vec3::ZERO {
+                    node["translation"] = json!(position.to_array().map(num));
+                }
+                nodes.push(node);
+            }
+            root.insert("extensions".into(), json!({"KHR_lights_punctual": {"lights": lights}}));
+            used.push("KHR_lights_punctual");
+            used.sort();
+        }
         if !used.is_empty() {
             root.insert("extensionsUsed".into(), json!(used));
         }
@@ -477,6 +530,26 @@ impl SceneBuilder {
 fn num(x: f32) -> Value {
     let shortest: f64 = format!("{x}").parse().expect("a finite f32 prints as a number");
     json!(shortest)
+}
+
+/// A light's `KHR_lights_punctual` entry, its node position and direction.
+fn light_json(l: &PunctualLight) -> (Value, Vec3, Vec3) {
+    let entry = |kind: &str, power: Vec3| {
+        let peak = power.max_element();
+        let color = if peak > 0.0 { power / peak } else { Vec3::ONE };
+        json!({"type": kind, "color": color.to_array().map(num), "intensity": num(peak)})
+    };
+    match *l {
+        PunctualLight::Point { position, intensity } => (entry("point", intensity), position, Vec3::NEG_Z),
+        PunctualLight::Spot { position, direction, intensity, inner_cone, outer_cone } => {
+            let mut v = entry("spot", intensity);
+            v["spot"] = json!({"innerConeAngle": num(inner_cone), "outerConeAngle": num(outer_cone)});
+            (v, position, direction)
+        }
+        PunctualLight::Directional { direction, irradiance } => {
+            (entry("directional", irradiance), Vec3::ZERO, direction)
+        }
+    }
 }
 
 /// glTF sampler wrap code.
@@ -612,6 +685,15 @@ pub(crate) mod tests {
         mesh::plane(b.mesh_mut(l), Affine3A::from_translation(Vec3::new(0.0, 3.0, 0.0)), Vec2::ONE, [2, 2], Vec2::ONE);
         b.add_mesh("empty", m0);
         b.set_camera(PerspectiveCamera::look_at("cam", Vec3::new(0.0, 1.0, 5.0), Vec3::ZERO, Vec3::Y, 35.0));
+        b.add_light(PunctualLight::Point { position: Vec3::new(1.0, 2.0, 3.0), intensity: Vec3::new(8.0, 4.0, 2.0) });
+        b.add_light(PunctualLight::Spot {
+            position: Vec3::new(0.0, 4.0, 0.0),
+            direction: Vec3::new(0.3, -1.0, 0.1).normalize(),
+            intensity: Vec3::splat(5.0),
+            inner_cone: 0.2,
+            outer_cone: 0.5,
+        });
+        b.add_light(PunctualLight::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::new(0.0, 1.0, 0.5) });
         b
     }
 
@@ -652,6 +734,26 @@ pub(crate) mod tests {
         // the metallic-roughness texture is linear: G of texel (1, 0) is 30/255
         let mr = &s.textures[s.materials[1].metallic_roughness_texture.unwrap().index as usize];
         assert!((mr.texels[1].y - 30.0 / 255.0).abs() < 1e-6);
+        assert_eq!(s.lights.len(), 3);
+        for (got, want) in s.lights.iter().zip(&b.lights) {
+            use PunctualLight::*;
+            let close = |a: Vec3, b: Vec3| a.abs_diff_eq(b, 1e-5);
+            match (got, want) {
+                (Point { position: p, intensity: i }, Point { position: q, intensity: j }) => {
+                    assert!(close(*p, *q) && close(*i, *j), "{got:?} vs {want:?}")
+                }
+                (
+                    Spot { position: p, direction: d, intensity: i, inner_cone: a, outer_cone: o },
+                    Spot { position: q, direction: e, intensity: j, inner_cone: b, outer_cone: c },
+                ) => {
+                    assert!(close(*p, *q) && close(*d, *e) && close(*i, *j) && a == b && o == c, "{got:?} vs {want:?}")
+                }
+                (Directional { direction: d, irradiance: i }, Directional { direction: e, irradiance: j }) => {
+                    assert!(close(*d, *e) && close(*i, *j), "{got:?} vs {want:?}")
+                }
+                _ => panic!("{got:?} vs {want:?}"),
+            }
+        }
         let cam = &s.cameras[0];
         assert!((cam.yfov - 35f32.to_radians()).abs() < 1e-6);
         assert!(cam.origin().abs_diff_eq(Vec3::new(0.0, 1.0, 5.0), 1e-5));

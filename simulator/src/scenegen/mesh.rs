@@ -491,6 +491,41 @@ mod tests {
         }
     }
 
+    /// UV extent of the vertices `range` of `m`: (min, max).
+    fn uv_box(m: &MeshData, range: std::ops::Range<usize>) -> (Vec2, Vec2) {
+        let uv = &m.uvs[range];
+        (uv.iter().fold(Vec2::MAX, |a, &b| a.min(b)), uv.iter().fold(Vec2::MIN, |a, &b| a.max(b)))
+    }
+
+    #[test]
+    fn uvs_are_metres_over_tile() {
+        // cuboid: each face's 4 vertices span its two edges / tile
+        let mut m = mesh();
+        cuboid(&mut m, Affine3A::IDENTITY, Vec3::new(1.0, 2.0, 3.0), Vec2::new(0.5, 0.25));
+        let spans: Vec<Vec2> = (0..6).map(|f| uv_box(&m, 4 * f..4 * f + 4)).map(|(lo, hi)| hi - lo).collect();
+        // +X face: u along Z (3 m), v along Y (2 m); +Y face: u along X (1 m), v along Z (3 m)
+        assert!(spans[0].abs_diff_eq(Vec2::new(6.0, 8.0), 1e-5), "{:?}", spans[0]);
+        assert!(spans[2].abs_diff_eq(Vec2::new(2.0, 12.0), 1e-5), "{:?}", spans[2]);
+        // the upper edge of a side face is at image top (v = 0)
+        let top = (0..4).filter(|&i| m.positions[i].y > 0.0).map(|i| m.uvs[i].y);
+        assert!(top.into_iter().all(|v| v == 0.0));
+        // extrusion: an outline over [0, W] x [-H, 0] with tile (W, H) maps the front cap to [0, 1]^2
+        let (w, h) = (2.0, 0.5);
+        let rect = [Vec2::ZERO, Vec2::new(w, 0.0), Vec2::new(w, -h), Vec2::new(0.0, -h)];
+        let mut e = mesh();
+        extrude(&mut e, Affine3A::IDENTITY, &rect, 0.1, Vec2::new(w, h));
+        let (lo, hi) = uv_box(&e, 0..4);
+        assert!(lo.abs_diff_eq(Vec2::ZERO, 1e-6) && hi.abs_diff_eq(Vec2::ONE, 1e-6), "{lo} {hi}");
+        // the top-left corner (0, 0) is the image's top-left
+        let corner = (0..4).find(|&i| e.positions[i].truncate() == Vec2::ZERO).unwrap();
+        assert_eq!(e.uvs[corner], Vec2::ZERO);
+        // sphere: u spans the equator's length / tile
+        let mut s = mesh();
+        uv_sphere(&mut s, Affine3A::IDENTITY, 0.5, 16, 8, Vec2::ONE);
+        let (lo, hi) = uv_box(&s, 0..s.uvs.len());
+        assert!((hi - lo).abs_diff_eq(Vec2::new(TAU * 0.5, PI * 0.5), 1e-5));
+    }
+
     #[test]
     fn extrusion_of_concave_outline_is_closed_and_outward() {
         // an L shape, given clockwise to exercise the reordering

@@ -14,6 +14,27 @@
 //! function returning a [`GeneratedScene`] (builder + `scene.toml` text). [`write_scene`] saves
 //! it as `<dir>/scene.gltf`, `scene.bin`, `textures/*.png` and `scene.toml`; the CLI and the
 //! tests share the registry.
+//!
+//! Building a scene (see [`demo`] for a complete one):
+//!
+//! ```no_run
+//! use glam::{Affine3A, Vec2, Vec3};
+//! use simulator::scene::WrapMode;
+//! use simulator::scenegen::{mesh, texture, write_scene, GeneratedScene, MaterialDesc, SceneBuilder};
+//!
+//! let mut b = SceneBuilder::new();
+//! // a 256 px texture per 2 m: 128 px/m on every surface built with tile = (2, 2)
+//! let bricks = texture::bricks(256, 256, &texture::Bricks {
+//!     rows: 16, per_row: 4, mortar_px: 2, brick: [150, 70, 50], mortar: [190; 3],
+//!     jitter: 0.1, grain: 0.3, seed: 1,
+//! });
+//! let tex = b.add_texture("bricks", bricks, WrapMode::Repeat);
+//! let mat = b.add_material(MaterialDesc::diffuse("wall", [1.0; 3]).with_texture(tex));
+//! let wall = b.add_mesh("wall", mat);
+//! mesh::cuboid(b.mesh_mut(wall), Affine3A::from_translation(Vec3::Y), Vec3::new(4.0, 2.0, 0.2), Vec2::splat(2.0));
+//! let toml = "scene = \"scene.gltf\"\n".to_string(); // plus [camera], [trajectory], [dataset]
+//! write_scene("scenes/my_scene".as_ref(), &GeneratedScene { builder: b, toml }).unwrap();
+//! ```
 
 pub mod demo;
 pub mod gltf_write;

@@ -82,8 +82,7 @@ pub struct Tiles {
     pub grout_px: u32,
     /// Grout colour.
     pub grout: Srgb,
-    /// Tile colours: tile colour is picked from these at random (a checker when two and
-    /// `random_pick` is false).
+    /// Tile colours: picked at random, or cycled diagonally (a checker with two colours).
     pub colors: Vec<Srgb>,
     /// Pick colours at random (true) or alternate them in a checker pattern (false).
     pub random_pick: bool,
@@ -181,7 +180,7 @@ pub fn fbm_values(width: u32, height: u32, f: &Fbm) -> Vec<f32> {
     let mut out = vec![0.0f32; (width * height) as usize];
     let (mut amp, mut total) = (1.0f32, 0.0f32);
     for o in 0..f.octaves.max(1) {
-        let cx = (f.cells.max(1) << o.min(16)) as i64;
+        let cx = (f.cells.max(1) as i64) << o.min(16);
         let cy = ((cx as f32 * height as f32 / width as f32).round() as i64).max(1);
         let lattice = |i: i64, j: i64| {
             let h = mix64(f.seed ^ mix64((o as u64) << 48 ^ (i.rem_euclid(cx) as u64) << 24 ^ j.rem_euclid(cy) as u64));

@@ -135,7 +135,8 @@ impl MaterialDesc {
     pub fn emitter(name: &str, radiance: [f32; 3]) -> MaterialDesc {
         MaterialDesc { name: name.into(), base_color: [0.0; 3], emissive: radiance, ..Default::default() }
     }
-    /// The same material with a base colour texture (the factor becomes white unless set after).
+    /// The same material with a base colour texture, which multiplies `base_color` (use a white
+    /// factor to show the texture as it is).
     pub fn with_texture(mut self, texture: TextureId) -> MaterialDesc {
         self.base_color_texture = Some(texture);
         self
@@ -346,6 +347,9 @@ impl SceneBuilder {
             if !(power.is_finite() && power.min_element() >= 0.0 && pos.is_finite() && dir.length() > 0.0) {
                 bail!("light {i}: power must be finite and non-negative, position finite, direction non-zero");
             }
+        }
+        if self.triangle_count() == 0 {
+            bail!("the scene has no triangles; add meshes and fill them with the mesh primitives");
         }
         if let Some(c) = &self.camera {
             if !(c.yfov > 0.0 && c.yfov < std::f32::consts::PI && c.znear > 0.0 && c.to_world.is_finite()) {
@@ -787,5 +791,7 @@ pub(crate) mod tests {
         b.meshes[0].indices.push([0, 1, 999]);
         let e = b.validate().unwrap_err().to_string();
         assert!(e.contains("mesh 0 \"box\""), "{e}");
+        let e = SceneBuilder::new().validate().unwrap_err().to_string();
+        assert!(e.contains("no triangles"), "{e}");
     }
 }

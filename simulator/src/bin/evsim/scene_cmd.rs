@@ -67,3 +67,20 @@ fn generate(args: &GenerateArgs) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn generate_writes_one_folder_and_lists_scenes_for_an_unknown_name() {
+        let out = std::env::temp_dir().join(format!("evsim-scene-generate-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        generate(&GenerateArgs { out: out.clone(), only: Some("gen_demo".into()) }).unwrap();
+        for f in ["scene.gltf", "scene.bin", "scene.toml"] {
+            assert!(out.join("gen_demo").join(f).is_file(), "{f}");
+        }
+        let e = generate(&GenerateArgs { out, only: Some("nope".into()) }).unwrap_err().to_string();
+        assert!(e.contains("--only nope") && e.contains("gen_demo"), "{e}");
+    }
+}

@@ -15,6 +15,8 @@
 //! - [`npy`]: NumPy `.npy` / `.npz` files, written (stored zip, atomically) and read (stored or
 //!   deflated), for the dataset's poses and timestamps and the event `.npz` sink.
 //! - [`export`]: writing a scene for Mitsuba 3 (PLY + EXR + `scene.json`).
+//! - [`scenegen`]: procedural scenes: a glTF 2.0 writer, mesh primitives, procedural textures
+//!   and the registry behind `evsim scene generate`.
 //! - [`reference`](mod@reference): comparison statistics and the Mitsuba 3 driver for reference checks.
 //! - [`error`]: the typed errors every loader returns.
 
@@ -31,6 +33,7 @@ pub mod npy;
 pub mod reference;
 pub mod render;
 pub mod scene;
+pub mod scenegen;
 pub mod trajectory;
 
 pub use error::SceneError;

@@ -7,6 +7,8 @@
 //!   and sharp views, poses, manifest), resumable.
 //! - `evsim check <DIR> [--test-views every8|last5|auto] [--events-unit ns|us|auto]`: verify a
 //!   dataset folder against the Ev-DeblurBlender layout (non-zero exit on problems).
+//! - `evsim scene generate [--out scenes] [--only NAME]`: write the procedural scenes (glTF +
+//!   `scene.toml`) of `simulator::scenegen::registry()`.
 //! - `evsim bench render`: render throughput (and the Mitsuba ratio when Mitsuba is installed),
 //!   BVH build time and ray throughput on a 1 M-triangle scene.
 
@@ -29,6 +31,7 @@ mod bench;
 mod check_cmd;
 mod dataset_cmd;
 mod events_cmd;
+mod scene_cmd;
 
 /// evblur simulator: render scenes (and, soon, event-camera datasets).
 #[derive(Parser, Debug)]
@@ -50,6 +53,11 @@ enum Command {
     DatasetNoise(dataset_cmd::NoiseArgs),
     /// Check a dataset folder against the Ev-DeblurBlender layout (images, timestamps, poses, events).
     Check(check_cmd::CheckArgs),
+    /// Procedural scenes: generate the registered scene folders.
+    Scene {
+        #[command(subcommand)]
+        what: scene_cmd::SceneCommand,
+    },
     /// Benchmarks that print performance figures.
     Bench {
         #[command(subcommand)]
@@ -213,6 +221,7 @@ fn main() -> Result<()> {
         Command::Dataset(args) => dataset_cmd::run(&args),
         Command::DatasetNoise(args) => dataset_cmd::run_noise(&args),
         Command::Check(args) => check_cmd::run(&args),
+        Command::Scene { what } => scene_cmd::run(what),
         Command::Bench { what } => bench::run(what),
     }
 }

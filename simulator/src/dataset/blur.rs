@@ -8,8 +8,12 @@
 //! near-linear motion (the definition of the paper's mean / max pixel displacement). Points that
 //! fall behind either camera are skipped.
 //!
-//! Per view: the mean and the maximum over pixels. Per scene: the mean of the views' means and
-//! the maximum of their maxima.
+//! Per view: the mean and the maximum over pixels, and the mean displacement vector (its
+//! direction is the view's dominant blur direction). Per scene: the mean of the views' means, the
+//! maximum of their maxima, and the *direction consistency* `R = |sum_i u_i| / n` of the views'
+//! unit blur axes `u_i` (axes, not directions: a streak has no sign, so the angles are doubled
+//! before averaging): 1 when every view blurs along the same axis, about 0 when the axes are
+//! spread evenly. Image-only deblurring finds consistent axes hardest.
 
 use glam::{DVec3, Vec2};
 use rayon::prelude::*;
@@ -29,6 +33,8 @@ pub struct ViewBlur {
     pub mean: f64,
     /// Largest displacement (px).
     pub max: f64,
+    /// Mean displacement vector (px, image x right, y down).
+    pub mean_vector: [f64; 2],
 }
 
 /// Blur over all blurry views.
@@ -40,6 +46,8 @@ pub struct BlurStats {
     pub mean: f64,
     /// Maximum of the views' maxima (px).
     pub max: f64,
+    /// Consistency of the views' blur axes in [0, 1] (1 = all the same axis).
+    pub direction_consistency: f64,
 }
 
 /// Pixel coordinates of world point `x` (homogeneous weight `w`: 1 = point, 0 = direction) seen
@@ -54,8 +62,15 @@ pub fn project(pose: &Pose, x: DVec3, w: f64, tan_half: f64, width: f64, height:
     Some([(nx + 1.0) * 0.5 * width, (1.0 - ny) * 0.5 * height])
 }
 
-/// Displacements of the pixels of one view (see the module docs).
-pub fn view_displacements(plan: &Plan, accel: &Accel, mid: &Pose, start: &Pose, end: &Pose, stride: u32) -> Vec<f64> {
+/// Displacement vectors (end minus start projection, px) of the pixels of one view.
+pub fn view_displacements(
+    plan: &Plan,
+    accel: &Accel,
+    mid: &Pose,
+    start: &Pose,
+    end: &Pose,
+    stride: u32,
+) -> Vec<[f64; 2]> {
     let (w, h) = (plan.config.width, plan.config.height);
     let cam = mid.camera(plan.yfov as f32);
     let tan_half = (0.5 * plan.yfov).tan();
@@ -71,7 +86,7 @@ pub fn view_displacements(plan: &Plan, accel: &Accel, mid: &Pose, start: &Pose, 
                 };
                 let a = project(start, point, weight, tan_half, w as f64, h as f64)?;
                 let b = project(end, point, weight, tan_half, w as f64, h as f64)?;
-                Some(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt())
+                Some([b[0] - a[0], b[1] - a[1]])
             })
         })
         .collect()
@@ -89,13 +104,23 @@ pub fn blur_stats(plan: &Plan, accel: &Accel, stride: u32) -> Result<BlurStats, 
         if d.is_empty() {
             continue;
         }
-        let mean = d.iter().sum::<f64>() / d.len() as f64;
-        let max = d.iter().copied().fold(0.0, f64::max);
-        views.push(ViewBlur { view: v.id, mean, max });
+        let n = d.len() as f64;
+        let len = |v: &[f64; 2]| v[0].hypot(v[1]);
+        let mean = d.iter().map(len).sum::<f64>() / n;
+        let max = d.iter().map(len).fold(0.0, f64::max);
+        let mean_vector = [d.iter().map(|v| v[0]).sum::<f64>() / n, d.iter().map(|v| v[1]).sum::<f64>() / n];
+        views.push(ViewBlur { view: v.id, mean, max, mean_vector });
     }
-    let mean = views.iter().map(|v| v.mean).sum::<f64>() / views.len().max(1) as f64;
+    let k = views.len().max(1) as f64;
+    let mean = views.iter().map(|v| v.mean).sum::<f64>() / k;
     let max = views.iter().map(|v| v.max).fold(0.0, f64::max);
-    Ok(BlurStats { views, mean, max })
+    // axial mean: double the angles so that opposite streak directions count as the same axis
+    let (c, s) = views.iter().fold((0.0, 0.0), |(c, s), v| {
+        let a = 2.0 * v.mean_vector[1].atan2(v.mean_vector[0]);
+        (c + a.cos(), s + a.sin())
+    });
+    let direction_consistency = c.hypot(s) / k;
+    Ok(BlurStats { views, mean, max, direction_consistency })
 }
 
 #[cfg(test)]

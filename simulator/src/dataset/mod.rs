@@ -11,6 +11,7 @@
 //!   shapes, dtypes, sortedness, rotations, timestamps and the sharp/blurry marking; its parts:
 //!   `check_images` (the PNG folders), `check_arrays` (the `.npy` / `.npz` files) and
 //!   `check_events` (`events.h5`, streamed in chunks).
+//! - [`preview`]: a contact sheet of one view (sharp, blurry, events).
 //! - [`noise`]: how many events path-tracing noise fires (a segment at spp vs 16x spp).
 //! - [`error`] holds [`DatasetError`].
 
@@ -24,6 +25,7 @@ pub mod depth;
 pub mod error;
 pub mod noise;
 pub mod plan;
+pub mod preview;
 pub mod settings;
 pub mod writer;
 

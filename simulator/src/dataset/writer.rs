@@ -129,7 +129,7 @@ fn io_stage(path: &Path) -> impl Fn(anyhow::Error) -> DatasetError + '_ {
 }
 
 /// Render settings of frame `k` (or, with `sharp`, of the sharp render at that frame time).
-fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> RenderSettings {
+pub(crate) fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> RenderSettings {
     let c = &plan.config;
     let mut s = RenderSettings::new(pose.camera(plan.yfov as f32));
     s.width = c.width;

@@ -2,6 +2,9 @@
 //!
 //! - `evsim scene generate [--out scenes] [--only NAME]`: build every registered scene (or one)
 //!   and write `<out>/<name>/{scene.gltf, scene.bin, textures/*.png, scene.toml}`.
+//! - `evsim scene info <scene.toml>`: content, trajectory and the blur statistics of the
+//!   configured exposure (mean / max pixel displacement, blur-axis consistency).
+//! - `evsim scene preview <scene.toml> --out sheet.png`: sharp | blurry | events of one view.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -16,6 +19,42 @@ use simulator::scenegen::{self, write_scene};
 pub enum SceneCommand {
     /// Write the registered procedural scenes as glTF + scene.toml folders.
     Generate(GenerateArgs),
+    /// Print a dataset scene's content, trajectory and blur statistics.
+    Info(InfoArgs),
+    /// Write a contact sheet (sharp view, blurry view, event frame of its exposure).
+    Preview(PreviewArgs),
+}
+
+/// Options of `evsim scene info`.
+#[derive(Args, Debug, Clone)]
+pub struct InfoArgs {
+    /// The scene file (`scenes/<name>/scene.toml`).
+    pub scene: PathBuf,
+    /// Trace every this-many-th pixel for the blur statistics.
+    #[arg(long, default_value_t = 4)]
+    pub stride: u32,
+    /// Print every view's blur.
+    #[arg(long)]
+    pub per_view: bool,
+    /// Settings overrides.
+    #[command(flatten)]
+    pub overrides: crate::dataset_cmd::OverrideArgs,
+}
+
+/// Options of `evsim scene preview`.
+#[derive(Args, Debug, Clone)]
+pub struct PreviewArgs {
+    /// The scene file (`scenes/<name>/scene.toml`).
+    pub scene: PathBuf,
+    /// Output PNG.
+    #[arg(long, default_value = "preview.png")]
+    pub out: PathBuf,
+    /// Which blurry view (default: the one nearest the middle).
+    #[arg(long)]
+    pub view: Option<usize>,
+    /// Settings overrides (e.g. --width 300 --height 200 for a quick sheet).
+    #[command(flatten)]
+    pub overrides: crate::dataset_cmd::OverrideArgs,
 }
 
 /// Options of `evsim scene generate`.
@@ -33,7 +72,112 @@ pub struct GenerateArgs {
 pub fn run(cmd: SceneCommand) -> Result<()> {
     match cmd {
         SceneCommand::Generate(args) => generate(&args),
+        SceneCommand::Info(args) => info(&args),
+        SceneCommand::Preview(args) => preview(&args),
     }
+}
+
+/// `evsim scene info`.
+fn info(args: &InfoArgs) -> Result<()> {
+    use simulator::dataset::blur::blur_stats;
+    use simulator::dataset::Plan;
+    use simulator::render::integrator::Renderer;
+    let plan = Plan::resolve(&args.scene, &args.overrides.resolve())?;
+    let s = &plan.scene;
+    let (mut lo, mut hi) = (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY));
+    for p in &s.mesh.positions {
+        (lo, hi) = (lo.min(*p), hi.max(*p));
+    }
+    let texels: usize = s.textures.iter().map(|t| (t.width * t.height) as usize).sum();
+    let emissive = s.materials.iter().filter(|m| m.is_emissive()).count();
+    let env = match &s.environment {
+        simulator::scene::Environment::Constant(c) => format!("constant {c}"),
+        simulator::scene::Environment::Map(m) => format!("map {}x{} (scale {})", m.width, m.height, m.scale),
+    };
+    println!("{}", args.scene.display());
+    println!("  triangles   {}", s.mesh.len());
+    println!("  materials   {} ({} emissive)", s.materials.len(), emissive);
+    println!("  textures    {} ({:.1} M texels)", s.textures.len(), texels as f64 / 1e6);
+    println!("  lights      {} punctual; environment {env}", s.lights.len());
+    println!("  bounds      {lo} .. {hi} m");
+    // the camera path
+    let c = &plan.config;
+    let n = plan.clock.n_frames;
+    let mut path = 0.0;
+    let mut prev: Option<glam::DVec3> = None;
+    for k in 0..n {
+        let p = plan.trajectory.pose_at(plan.clock.time_ns(k))?.position;
+        if let Some(q) = prev {
+            path += (p - q).length();
+        }
+        prev = Some(p);
+    }
+    let secs = n as f64 * plan.clock.dt_ns as f64 / 1e9;
+    println!(
+        "  trajectory  {:.3} s, {n} frames at {} FPS, camera path {:.2} m ({:.2} m/s)",
+        secs,
+        c.fps,
+        path,
+        path / secs
+    );
+    let sharp = (0..plan.views.len()).filter(|&i| plan.is_sharp(i)).count();
+    println!(
+        "  dataset     {}x{}, {} views ({} sharp), exposure {} ms, {} spp (sharp {}), threshold {}/{}",
+        c.width,
+        c.height,
+        plan.views.len(),
+        sharp,
+        c.exposure_ms,
+        c.spp,
+        plan.sharp_spp,
+        plan.events.c_pos,
+        plan.events.c_neg
+    );
+    let renderer = Renderer::with_preset(&plan.scene, c.bvh);
+    let b = blur_stats(&plan, &renderer.accel, args.stride)?;
+    if args.per_view {
+        for v in &b.views {
+            println!(
+                "    view {:>3}: mean {:6.1} px, max {:6.1} px, direction {:+6.1} deg",
+                v.view,
+                v.mean,
+                v.max,
+                v.mean_vector[1].atan2(v.mean_vector[0]).to_degrees()
+            );
+        }
+    }
+    println!(
+        "  blur        mean {:.1} px, max {:.1} px over {} blurry views at {} ms; blur-axis consistency {:.2}",
+        b.mean,
+        b.max,
+        b.views.len(),
+        c.exposure_ms,
+        b.direction_consistency
+    );
+    Ok(())
+}
+
+/// `evsim scene preview`.
+fn preview(args: &PreviewArgs) -> Result<()> {
+    use simulator::dataset::preview::contact_sheet;
+    use simulator::dataset::Plan;
+    use simulator::render::integrator::Renderer;
+    let t0 = Instant::now();
+    let plan = Plan::resolve(&args.scene, &args.overrides.resolve())?;
+    let renderer = Renderer::with_preset(&plan.scene, plan.config.bvh);
+    let sheet = contact_sheet(&plan, &renderer, args.view)?;
+    let mut bytes = Vec::new();
+    sheet.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)?;
+    simulator::image_io::write_atomic(&args.out, &bytes)?;
+    println!(
+        "{}: wrote {} ({}x{}) in {:.1} s",
+        args.scene.display(),
+        args.out.display(),
+        sheet.width(),
+        sheet.height(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 /// `evsim scene generate`.

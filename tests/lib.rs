@@ -2,7 +2,9 @@
 //! `mitsuba_reference.rs` (the path tracer against Mitsuba 3), `gltf_render.rs` (glTF end to
 //! end), `event_files.rs` and `npy_files.rs` (our files as h5py / numpy read them), `dataset_check.rs`
 //! (the dataset schema check against h5py/numpy-written folders, and `python/read_dataset.py`,
-//! the reference loader's reading, against ours).
+//! the reference loader's reading, against ours), `dataset_writer.rs` (`evsim dataset` end to
+//! end: layout, re-runs, resume, thread counts, the noise measurement) and `scene_library.rs`
+//! (every dataset scene in `scenes/` makes a dataset that passes the check).
 //!
 //! This library holds what those files share: fresh temp folders and the reference Python
 //! (the Mitsuba venv, which also has numpy and h5py), skipped or required by

@@ -134,7 +134,15 @@ pub fn scene_key(scene: &Scene) -> String {
 impl Plan {
     /// Read `scene_file` (a `.toml` scene description with `[trajectory]` and optional
     /// `[dataset]` / `[events]` tables), apply `overrides`, check everything and load the scene.
+    /// A folder stands for its `scene.toml` (`evsim dataset scenes/cbox`).
     pub fn resolve(scene_file: &Path, overrides: &Overrides) -> Result<Plan, DatasetError> {
+        let folder_file;
+        let scene_file = if scene_file.is_dir() {
+            folder_file = scene_file.join("scene.toml");
+            folder_file.as_path()
+        } else {
+            scene_file
+        };
         let text = std::fs::read_to_string(scene_file)
             .map_err(|e| DatasetError::io(scene_file, "cannot read the scene file", e))?;
         let desc = description::parse(&text, scene_file)?;
@@ -142,8 +150,8 @@ impl Plan {
         let trajectory_config = desc.trajectory.clone().ok_or_else(|| {
             bad(
                 "trajectory",
-                "missing: a dataset needs a camera path; add e.g. `[trajectory]\\ntype = \"fast_motion\"\\n\
-                 target = [0.0, 0.0, 0.0]\\nradius = 4.0` (see `simulator::trajectory`)"
+                "missing: a dataset needs a camera path; add a [trajectory] table, e.g. type = \"fast_motion\", \
+                 target = [0.0, 0.0, 0.0], radius = 4.0 (see simulator::trajectory)"
                     .into(),
             )
         })?;

@@ -12,7 +12,7 @@ use simulator::dataset::{write_dataset, NoisePattern, Overrides, Plan, RunOption
 /// Options of `evsim dataset`.
 #[derive(Args, Debug, Clone)]
 pub struct DatasetArgs {
-    /// The scene file (`scenes/<name>/scene.toml`, with a [trajectory] table).
+    /// The scene file (`scenes/<name>/scene.toml`, with a [trajectory] table) or its folder.
     pub scene: PathBuf,
     /// The dataset folder to write (created; an interrupted run in it is resumed).
     #[arg(long)]

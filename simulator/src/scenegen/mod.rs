@@ -9,6 +9,7 @@
 //! - [`texture`]: seeded procedural textures (stripes, checker, tiles, bricks, fBm, wood, 5x7
 //!   bitmap text).
 //! - [`demo`]: the `gen_demo` scene, a small example of the whole API.
+//! - [`tanabata`]: benchmark scene, a summer-festival street with bamboo, tanzaku and lanterns.
 //!
 //! A scene is a [`SceneSpec`] in [`registry`]: a name, a one-line description and a `build`
 //! function returning a [`GeneratedScene`] (builder + `scene.toml` text). [`write_scene`] saves
@@ -39,6 +40,7 @@
 pub mod demo;
 pub mod gltf_write;
 pub mod mesh;
+pub mod tanabata;
 pub mod texture;
 
 use std::path::Path;
@@ -72,11 +74,18 @@ pub struct SceneSpec {
 
 /// Every procedural scene, in listing order.
 pub fn registry() -> &'static [SceneSpec] {
-    const SCENES: &[SceneSpec] = &[SceneSpec {
-        name: "gen_demo",
-        description: "demonstration: textured ground, boxes, cylinders, spheres, a torus, a sign and an emissive panel (~20k triangles)",
-        build: demo::gen_demo,
-    }];
+    const SCENES: &[SceneSpec] = &[
+        SceneSpec {
+            name: "gen_demo",
+            description: "demonstration: textured ground, boxes, cylinders, spheres, a torus, a sign and an emissive panel (~20k triangles)",
+            build: demo::gen_demo,
+        },
+        SceneSpec {
+            name: "tanabata",
+            description: "benchmark: a summer-festival street at dusk, bamboo hung with tanzaku, stalls, lanterns; hand-held shake",
+            build: tanabata::tanabata,
+        },
+    ];
     SCENES
 }
 

@@ -10,6 +10,7 @@
 //!   bitmap text).
 //! - [`demo`]: the `gen_demo` scene, a small example of the whole API.
 //! - [`tanabata`]: benchmark scene, a summer-festival street with bamboo, tanzaku and lanterns.
+//! - [`trolley`]: benchmark scene, a tram street with shop fronts, seen while riding past.
 //!
 //! A scene is a [`SceneSpec`] in [`registry`]: a name, a one-line description and a `build`
 //! function returning a [`GeneratedScene`] (builder + `scene.toml` text). [`write_scene`] saves
@@ -42,6 +43,7 @@ pub mod gltf_write;
 pub mod mesh;
 pub mod tanabata;
 pub mod texture;
+pub mod trolley;
 
 use std::path::Path;
 
@@ -84,6 +86,11 @@ pub fn registry() -> &'static [SceneSpec] {
             name: "tanabata",
             description: "benchmark: a summer-festival street at dusk, bamboo hung with tanzaku, stalls, lanterns; hand-held shake",
             build: tanabata::tanabata,
+        },
+        SceneSpec {
+            name: "trolley",
+            description: "benchmark: a tram street with a trolley car, rails, overhead wires and shop fronts; sideways dolly",
+            build: trolley::trolley,
         },
     ];
     SCENES

@@ -522,7 +522,7 @@ fn street_furniture(b: &mut SceneBuilder, rng: &mut Rng, steel: MaterialId, pain
             let r = uniform(rng, 0.9, 1.3);
             let xf = Affine3A::from_scale_rotation_translation(
                 Vec3::new(1.0, 0.8, 1.0),
-                Quat::from_rotation_y(uniform(rng, 0.0, 6.28)),
+                Quat::from_rotation_y(uniform(rng, 0.0, std::f32::consts::TAU)),
                 c,
             );
             mesh::uv_sphere(b.mesh_mut(crowns), xf, r, 40, 20, Vec2::splat(1.5));

@@ -9,6 +9,8 @@
 //! - [`texture`]: seeded procedural textures (stripes, checker, tiles, bricks, fBm, wood, 5x7
 //!   bitmap text).
 //! - [`demo`]: the `gen_demo` scene, a small example of the whole API.
+//! - [`tanabata`]: benchmark scene, a summer-festival street with bamboo, tanzaku and lanterns.
+//! - [`trolley`]: benchmark scene, a tram street with shop fronts, seen while riding past.
 //!
 //! A scene is a [`SceneSpec`] in [`registry`]: a name, a one-line description and a `build`
 //! function returning a [`GeneratedScene`] (builder + `scene.toml` text). [`write_scene`] saves
@@ -39,7 +41,9 @@
 pub mod demo;
 pub mod gltf_write;
 pub mod mesh;
+pub mod tanabata;
 pub mod texture;
+pub mod trolley;
 
 use std::path::Path;
 
@@ -72,11 +76,23 @@ pub struct SceneSpec {
 
 /// Every procedural scene, in listing order.
 pub fn registry() -> &'static [SceneSpec] {
-    const SCENES: &[SceneSpec] = &[SceneSpec {
-        name: "gen_demo",
-        description: "demonstration: textured ground, boxes, cylinders, spheres, a torus, a sign and an emissive panel (~20k triangles)",
-        build: demo::gen_demo,
-    }];
+    const SCENES: &[SceneSpec] = &[
+        SceneSpec {
+            name: "gen_demo",
+            description: "demonstration: textured ground, boxes, cylinders, spheres, a torus, a sign and an emissive panel (~20k triangles)",
+            build: demo::gen_demo,
+        },
+        SceneSpec {
+            name: "tanabata",
+            description: "benchmark: a summer-festival street at dusk, bamboo hung with tanzaku, stalls, lanterns; hand-held shake",
+            build: tanabata::tanabata,
+        },
+        SceneSpec {
+            name: "trolley",
+            description: "benchmark: a tram street with a trolley car, rails, overhead wires and shop fronts; sideways dolly",
+            build: trolley::trolley,
+        },
+    ];
     SCENES
 }
 

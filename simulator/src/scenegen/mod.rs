@@ -9,6 +9,8 @@
 //! - [`texture`]: seeded procedural textures (stripes, checker, tiles, bricks, fBm, wood, 5x7
 //!   bitmap text).
 //! - [`demo`]: the `gen_demo` scene, a small example of the whole API.
+//! - [`camera_path`]: key-pose `[trajectory]` tables of the benchmark scenes.
+//! - [`factory`]: the `factory` benchmark scene (machines, racks, pipes, crates, signs).
 //!
 //! A scene is a [`SceneSpec`] in [`registry`]: a name, a one-line description and a `build`
 //! function returning a [`GeneratedScene`] (builder + `scene.toml` text). [`write_scene`] saves
@@ -36,7 +38,9 @@
 //! write_scene("scenes/my_scene".as_ref(), &GeneratedScene { builder: b, toml }).unwrap();
 //! ```
 
+pub mod camera_path;
 pub mod demo;
+pub mod factory;
 pub mod gltf_write;
 pub mod mesh;
 pub mod texture;
@@ -72,11 +76,18 @@ pub struct SceneSpec {
 
 /// Every procedural scene, in listing order.
 pub fn registry() -> &'static [SceneSpec] {
-    const SCENES: &[SceneSpec] = &[SceneSpec {
-        name: "gen_demo",
-        description: "demonstration: textured ground, boxes, cylinders, spheres, a torus, a sign and an emissive panel (~20k triangles)",
-        build: demo::gen_demo,
-    }];
+    const SCENES: &[SceneSpec] = &[
+        SceneSpec {
+            name: "gen_demo",
+            description: "demonstration: textured ground, boxes, cylinders, spheres, a torus, a sign and an emissive panel (~20k triangles)",
+            build: demo::gen_demo,
+        },
+        SceneSpec {
+            name: "factory",
+            description: "benchmark: a factory hall with a press, conveyor, tank, racks of boxes, pipes, crates and signs",
+            build: factory::factory,
+        },
+    ];
     SCENES
 }
 

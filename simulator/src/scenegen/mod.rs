@@ -11,6 +11,7 @@
 //! - [`demo`]: the `gen_demo` scene, a small example of the whole API.
 //! - [`camera_path`]: key-pose `[trajectory]` tables of the benchmark scenes.
 //! - [`factory`]: the `factory` benchmark scene (machines, racks, pipes, crates, signs).
+//! - [`pool`]: the `pool` benchmark scene (outdoor pool, loungers, umbrellas, plants, a facade).
 //!
 //! A scene is a [`SceneSpec`] in [`registry`]: a name, a one-line description and a `build`
 //! function returning a [`GeneratedScene`] (builder + `scene.toml` text). [`write_scene`] saves
@@ -43,6 +44,7 @@ pub mod demo;
 pub mod factory;
 pub mod gltf_write;
 pub mod mesh;
+pub mod pool;
 pub mod texture;
 
 use std::path::Path;
@@ -86,6 +88,11 @@ pub fn registry() -> &'static [SceneSpec] {
             name: "factory",
             description: "benchmark: a factory hall with a press, conveyor, tank, racks of boxes, pipes, crates and signs",
             build: factory::factory,
+        },
+        SceneSpec {
+            name: "pool",
+            description: "benchmark: an outdoor hotel pool with mosaic tiles, water, ladders, loungers, umbrellas, plants and a facade",
+            build: pool::pool,
         },
     ];
     SCENES

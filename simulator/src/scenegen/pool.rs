@@ -197,7 +197,7 @@ pub fn pool() -> GeneratedScene {
     }
 
     // "NO DIVING" and depth markings on the deck
-    let mark_px = texture::sign(256, 64, &["NO DIVING   1.6 M"], 3, [170, 20, 20], [228, 220, 204], 0);
+    let mark_px = texture::sign(256, 64, &["NO DIVING   1.6 M"], 2, [170, 20, 20], [228, 220, 204], 0);
     let mark_tex = b.add_texture("deck_marking", mark_px, clamp);
     let mark = b.add_material(MaterialDesc::glossy("deck_marking", [1.0; 3], 0.5).with_texture(mark_tex));
     let m = b.add_mesh("deck_marking", mark);

@@ -9,6 +9,9 @@
 //! - [`texture`]: seeded procedural textures (stripes, checker, tiles, bricks, fBm, wood, 5x7
 //!   bitmap text).
 //! - [`demo`]: the `gen_demo` scene, a small example of the whole API.
+//! - [`camera_path`]: key-pose `[trajectory]` tables of the benchmark scenes.
+//! - [`factory`]: the `factory` benchmark scene (machines, racks, pipes, crates, signs).
+//! - [`pool`]: the `pool` benchmark scene (outdoor pool, loungers, umbrellas, plants, a facade).
 //! - [`tanabata`]: benchmark scene, a summer-festival street with bamboo, tanzaku and lanterns.
 //! - [`trolley`]: benchmark scene, a tram street with shop fronts, seen while riding past.
 //!
@@ -38,9 +41,12 @@
 //! write_scene("scenes/my_scene".as_ref(), &GeneratedScene { builder: b, toml }).unwrap();
 //! ```
 
+pub mod camera_path;
 pub mod demo;
+pub mod factory;
 pub mod gltf_write;
 pub mod mesh;
+pub mod pool;
 pub mod tanabata;
 pub mod texture;
 pub mod trolley;
@@ -81,6 +87,16 @@ pub fn registry() -> &'static [SceneSpec] {
             name: "gen_demo",
             description: "demonstration: textured ground, boxes, cylinders, spheres, a torus, a sign and an emissive panel (~20k triangles)",
             build: demo::gen_demo,
+        },
+        SceneSpec {
+            name: "factory",
+            description: "benchmark: a factory hall with a press, conveyor, tank, racks of boxes, pipes, crates and signs",
+            build: factory::factory,
+        },
+        SceneSpec {
+            name: "pool",
+            description: "benchmark: an outdoor hotel pool with mosaic tiles, water, ladders, loungers, umbrellas, plants and a facade",
+            build: pool::pool,
         },
         SceneSpec {
             name: "tanabata",

@@ -114,6 +114,7 @@ fn event_counts(
         let mut s = RenderSettings::new(pose.camera(plan.yfov as f32));
         (s.width, s.height, s.spp, s.max_depth, s.seed, s.sampler) =
             (c.width, c.height, spp, c.max_depth, c.seed, c.sampler);
+        s.clamp = c.clamp;
         s.frame = match c.noise_pattern {
             NoisePattern::Fixed => 0,
             NoisePattern::PerFrame => k as u64,

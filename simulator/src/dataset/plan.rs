@@ -73,6 +73,7 @@ struct RenderIdentity<'a> {
     max_depth: u32,
     seed: u64,
     sampler: crate::render::sampler::SamplerKind,
+    clamp_bits: u32,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -217,6 +218,7 @@ impl Plan {
                 max_depth: config.max_depth,
                 seed: config.seed,
                 sampler: config.sampler,
+                clamp_bits: config.clamp.to_bits(),
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })
@@ -285,6 +287,9 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
     }
     if d.max_depth == 0 {
         return bad("dataset.max_depth", "0 must be at least 1 path segment".into());
+    }
+    if !(d.clamp >= 0.0 && d.clamp.is_finite()) {
+        return bad("dataset.clamp", format!("{} must be >= 0 (0 turns clamping off)", d.clamp));
     }
     if !(d.gain > 0.0 && d.gain.is_finite()) {
         return bad("dataset.gain", format!("{} must be a positive finite factor", d.gain));

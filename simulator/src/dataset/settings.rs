@@ -78,6 +78,10 @@ pub struct DatasetConfig {
     pub response: CameraResponse,
     /// Linear gain applied before the response (unitless, > 0): an exposure compensation.
     pub gain: f32,
+    /// Sample clamping: the largest channel of one path's contribution, except emitters seen
+    /// directly (radiance units; 0 = off). Removes fireflies that flicker between frames and fire
+    /// false events, at the cost of darkening rare very bright paths (see `evsim dataset-noise`).
+    pub clamp: f32,
 }
 
 impl Default for DatasetConfig {
@@ -100,6 +104,7 @@ impl Default for DatasetConfig {
             bvh: BvhPreset::default(),
             response: CameraResponse::default(),
             gain: 1.0,
+            clamp: 0.0,
         }
     }
 }
@@ -127,6 +132,8 @@ pub struct Overrides {
     pub seed: Option<u64>,
     /// `[dataset] noise_pattern`.
     pub noise_pattern: Option<NoisePattern>,
+    /// `[dataset] clamp`.
+    pub clamp: Option<f32>,
 }
 
 impl Overrides {
@@ -150,5 +157,6 @@ impl Overrides {
         d.views = self.views.unwrap_or(d.views);
         d.seed = self.seed.unwrap_or(d.seed);
         d.noise_pattern = self.noise_pattern.unwrap_or(d.noise_pattern);
+        d.clamp = self.clamp.unwrap_or(d.clamp);
     }
 }

@@ -137,6 +137,7 @@ pub(crate) fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -
     s.max_depth = c.max_depth;
     s.seed = c.seed;
     s.sampler = c.sampler;
+    s.clamp = c.clamp;
     if sharp {
         s.spp = plan.sharp_spp;
         // sharp renders draw from their own streams (far from any sequence frame index)

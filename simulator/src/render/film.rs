@@ -53,10 +53,14 @@ pub struct RenderSettings {
     pub camera: Camera,
     /// Where the random numbers come from.
     pub sampler: SamplerKind,
+    /// Largest channel of any one path contribution except directly visible emitters (sample
+    /// clamping against fireflies; biased); 0 = off (the default).
+    pub clamp: f32,
 }
 
 impl RenderSettings {
-    /// Defaults: 600x400, 64 spp, max depth 5, roulette from depth 5, seed 0, frame 0, Sobol.
+    /// Defaults: 600x400, 64 spp, max depth 5, roulette from depth 5, seed 0, frame 0, Sobol, no
+    /// clamping.
     pub fn new(camera: Camera) -> RenderSettings {
         RenderSettings {
             width: 600,
@@ -68,6 +72,7 @@ impl RenderSettings {
             frame: 0,
             camera,
             sampler: SamplerKind::default(),
+            clamp: 0.0,
         }
     }
 }

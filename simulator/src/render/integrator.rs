@@ -173,7 +173,7 @@ impl<'a> Renderer<'a> {
                         None => 1.0,
                         Some(pb) => power_heuristic(pb, self.lights.pdf_environment(&scene.environment, d)),
                     };
-                    l += beta * le * w;
+                    l += clamp_after_camera(beta * le * w, depth, s.clamp);
                 }
                 break;
             };
@@ -186,7 +186,7 @@ impl<'a> Renderer<'a> {
                     None => 1.0,
                     Some(pb) => power_heuristic(pb, self.lights.pdf_triangle(hit.prim, prev_p, sh.p, sh.ng)),
                 };
-                l += beta * le * w;
+                l += clamp_after_camera(beta * le * w, depth, s.clamp);
             }
             if depth >= s.max_depth {
                 break;
@@ -213,7 +213,7 @@ impl<'a> Renderer<'a> {
                         let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) - 1e-4 } else { f32::INFINITY };
                         if !self.accel.occluded(p_off, ls.wi, 0.0, tmax) {
                             let w = if ls.is_delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
-                            l += beta * f * ls.radiance * (w / ls.pdf);
+                            l += clamp_after_camera(beta * f * ls.radiance * (w / ls.pdf), depth + 1, s.clamp);
                         }
                     }
                 }
@@ -244,6 +244,21 @@ impl<'a> Renderer<'a> {
             d = wi;
         }
         l
+    }
+}
+
+/// Sample clamping (Cycles' "clamp"): a contribution of a path with `segments` segments is
+/// scaled so that its largest channel is at most `clamp`, except light reaching the camera
+/// directly (`segments == 1`). `clamp <= 0` or infinite turns it off. Biased (it darkens rare,
+/// very bright paths such as caustics and highlights of small lights) but removes the fireflies
+/// that flicker from frame to frame and fire false events.
+#[inline]
+fn clamp_after_camera(c: Vec3, segments: u32, clamp: f32) -> Vec3 {
+    let m = c.max_element();
+    if segments <= 1 || !(clamp > 0.0) || !clamp.is_finite() || m <= clamp {
+        c
+    } else {
+        c * (clamp / m)
     }
 }
 

@@ -133,3 +133,22 @@ fn image_is_identical_with_one_or_two_threads() {
     other_frame.frame = 1;
     assert_ne!(r.render(&other_frame, None), one, "frames must use different random streams");
 }
+
+#[test]
+fn clamping_only_darkens_and_never_touches_directly_seen_emitters() {
+    let scene = furnace_scene();
+    let r = Renderer::new(&scene);
+    let base = settings(16, 3);
+    let plain = r.render(&base, None);
+    // a clamp above every contribution changes nothing
+    assert_eq!(r.render(&RenderSettings { clamp: 1e9, ..base.clone() }, None), plain);
+    // a low clamp darkens every channel of every pixel (or leaves it), and the mean strictly
+    let low = r.render(&RenderSettings { clamp: 0.1, ..base.clone() }, None);
+    for (a, b) in low.pixels.iter().zip(&plain.pixels) {
+        assert!(a.cmple(*b + Vec3::splat(1e-6)).all(), "{a} > {b}");
+    }
+    assert!(low.mean().x < plain.mean().x - 0.1, "{} vs {}", low.mean(), plain.mean());
+    // emitters seen from the camera are never clamped: depth 1 shows emission 1 exactly
+    let direct = RenderSettings { clamp: 0.1, ..settings(4, 1) };
+    assert!((r.render(&direct, None).mean() - Vec3::ONE).abs().max_element() < 1e-6);
+}

@@ -65,6 +65,9 @@ pub struct OverrideArgs {
     /// Override [dataset] noise_pattern.
     #[arg(long, value_enum)]
     pub noise_pattern: Option<NoisePattern>,
+    /// Override [dataset] clamp: largest channel of one path contribution (0 = off).
+    #[arg(long)]
+    pub clamp: Option<f32>,
 }
 
 impl OverrideArgs {
@@ -81,6 +84,7 @@ impl OverrideArgs {
             views: self.views,
             seed: self.seed,
             noise_pattern: self.noise_pattern,
+            clamp: self.clamp,
         }
     }
 }

@@ -109,6 +109,10 @@ pub struct RenderArgs {
     /// BVH build preset.
     #[arg(long, value_enum, default_value_t = BvhPreset::default())]
     pub bvh: BvhPreset,
+    /// Sample clamping: largest channel of one path contribution, except emitters seen directly
+    /// (0 = off; biased, removes fireflies).
+    #[arg(long, default_value_t = 0.0)]
+    pub clamp: f32,
 }
 
 /// Parse "x,y,z" into a vector.
@@ -155,6 +159,9 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
     if args.width == 0 || args.height == 0 || args.spp == 0 {
         bail!("--width, --height and --spp must be positive");
     }
+    if !(args.clamp >= 0.0 && args.clamp.is_finite()) {
+        bail!("--clamp {}: give a finite value >= 0 (0 turns clamping off)", args.clamp);
+    }
     Ok(RenderSettings {
         width: args.width,
         height: args.height,
@@ -165,6 +172,7 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         frame: 0,
         camera,
         sampler: args.sampler,
+        clamp: args.clamp,
     })
 }
 

@@ -215,4 +215,7 @@ fn broken_datasets_fail_with_the_file_named() {
     // not a folder
     let e = Dataset::load(&dir.join("nope"), &LoadOptions::default()).unwrap_err().to_string();
     assert!(e.contains("nope"), "{e}");
+    for name in ["missing-poses", "short-times", "truncated-events", "missing-image"] {
+        let _ = std::fs::remove_dir_all(dataset_dir().parent().unwrap().join(name));
+    }
 }

@@ -29,3 +29,6 @@ pub use image::RgbImage;
 pub use rays::{ndc_ray, Intrinsics, Ray};
 pub use trajectory::DenseTrajectory;
 pub use world::WorldTransform;
+
+#[cfg(test)]
+mod public_style_tests;

@@ -161,6 +161,9 @@ impl Dataset {
         // 2. poses: LLFF conversion, scale, recentring
         let rows = read_rows(dir, POSES)?;
         let n = rows.len();
+        if n == 0 {
+            return Err(LoadError::invalid(POSES, "rows", "no images", "write at least one view"));
+        }
         let transform = WorldTransform::from_rows(&rows);
         let first = rows[0];
         let intrinsics = Intrinsics { width: first.width as u32, height: first.height as u32, focal: first.focal };

@@ -1,1 +1,8 @@
 //! Trainer: radiance fields, blur models and losses (to come; see issue tracker).
+//!
+//! What lives where:
+//! - [`data`]: the dataset loader (the Ev-DeblurBlender layout): images, poses in the recentred,
+//!   scaled world, the dense trajectory with pose interpolation, events with successors, rays.
+#![warn(missing_docs)]
+
+pub mod data;

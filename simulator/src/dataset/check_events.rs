@@ -27,20 +27,29 @@ enum Kind {
     Enum1 { signed: bool },
 }
 
-/// One chunk of a column.
-enum Col {
+/// One chunk of a column: integers (any standard width, and h5py `bool`) as i64, floats as f64.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Col {
+    /// An integer column.
     Int(Vec<i64>),
+    /// A float column (rectified coordinates, float times).
     Float(Vec<f64>),
 }
 
 impl Col {
-    fn len(&self) -> usize {
+    /// Number of values.
+    pub fn len(&self) -> usize {
         match self {
             Col::Int(v) => v.len(),
             Col::Float(v) => v.len(),
         }
     }
-    fn get(&self, i: usize) -> f64 {
+    /// True if there are no values.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Value `i` as f64.
+    pub fn get(&self, i: usize) -> f64 {
         match self {
             Col::Int(v) => v[i] as f64,
             Col::Float(v) => v[i],
@@ -73,6 +82,46 @@ fn read(ds: &H5Dataset, kind: Kind, start: usize, count: usize) -> rust_hdf5::Re
             Col::Int(ds.read_slice::<i8>(&[start], &[count])?.into_iter().map(i64::from).collect())
         }
     })
+}
+
+/// One 1-D numeric column of `events.h5`, opened for reading in chunks (the reusable part of
+/// this check, for the trainer's loader).
+pub struct EventColumnReader {
+    ds: H5Dataset,
+    kind: Kind,
+}
+
+impl EventColumnReader {
+    /// Open root dataset `name`; errors (as text) when it is missing, not 1-D or not a number.
+    pub fn open(file: &H5File, name: &str) -> Result<EventColumnReader, String> {
+        let ds = file.dataset(name).map_err(|e| format!("dataset {name} missing ({e})"))?;
+        if ds.ndims() != 1 {
+            return Err(format!("dataset {name} has shape {:?}, expected 1-D", ds.shape()));
+        }
+        let dt = ds.datatype().map_err(|e| format!("dataset {name}: {e}"))?;
+        let kind = kind_of(&dt).map_err(|e| format!("dataset {name}: {e}"))?;
+        Ok(EventColumnReader { ds, kind })
+    }
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        self.ds.shape()[0]
+    }
+    /// True if the column is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// True for a float column (rectified coordinates).
+    pub fn is_float(&self) -> bool {
+        self.kind == Kind::Float
+    }
+    /// Read `count` values from `start` (fewer values than asked is an error).
+    pub fn read(&self, start: usize, count: usize) -> Result<Col, String> {
+        let v = read(&self.ds, self.kind, start, count).map_err(|e| e.to_string())?;
+        if v.len() != count {
+            return Err(format!("{} values read, {count} asked", v.len()));
+        }
+        Ok(v)
+    }
 }
 
 /// An opened column: dataset, kind and dtype name.

@@ -10,7 +10,8 @@
 //! - [`check`]: opens a dataset folder (ours or a public Ev-DeblurBlender one) and verifies
 //!   shapes, dtypes, sortedness, rotations, timestamps and the sharp/blurry marking; its parts:
 //!   `check_images` (the PNG folders), `check_arrays` (the `.npy` / `.npz` files) and
-//!   `check_events` (`events.h5`, streamed in chunks).
+//!   `check_events` (`events.h5`, streamed in chunks; its column reader
+//!   [`EventColumnReader`] is public for the trainer's loader).
 //! - [`preview`]: a contact sheet of one view (sharp, blurry, events).
 //! - [`noise`]: how many events path-tracing noise fires (a segment at spp vs 16x spp).
 //! - [`error`] holds [`DatasetError`].
@@ -29,6 +30,7 @@ pub mod preview;
 pub mod settings;
 pub mod writer;
 
+pub use check_events::{Col as EventCol, EventColumnReader};
 pub use error::DatasetError;
 pub use plan::Plan;
 pub use settings::{DatasetConfig, NoisePattern, Overrides};

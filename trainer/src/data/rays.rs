@@ -1,0 +1,116 @@
+//! Pinhole rays through pixel centres, and the NDC warp for forward-facing scenes.
+//!
+//! Intrinsics `K = [[f, 0, W/2], [0, f, H/2], [0, 0, 1]]`; pixel `(i, j)` (column, row; row 0 at
+//! the top) has its centre at `(i + 0.5, j + 0.5)`. As NeRF's `get_rays`, the camera-space
+//! direction is `((u - W/2) / f, -(v - H/2) / f, -1)` (not normalised: its z is -1, which the NDC
+//! warp relies on), rotated to world by the camera-to-world rotation; the origin is the camera
+//! centre.
+//!
+//! NDC (NeRF's `ndc_rays`, near plane `n`, here 1): move the origin to the plane `z = -n`,
+//! `o <- o + t_n d` with `t_n = -(n + o_z) / d_z`, then
+//! `o' = (-f/(W/2) o_x/o_z, -f/(H/2) o_y/o_z, 1 + 2n/o_z)`,
+//! `d' = (-f/(W/2) (d_x/d_z - o_x/o_z), -f/(H/2) (d_y/d_z - o_y/o_z), -2n/o_z)`.
+//! Points in front of the camera between the near plane and infinity map to NDC depth [-1, 1);
+//! the ray `o' + s d'` reaches depth 1 (infinity) at `s = 1`, so samples use near 0, far 1.
+
+use glam::DVec3;
+use simulator::trajectory::Pose;
+
+/// A ray: origin and direction (not normalised) in the loader's world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Origin.
+    pub origin: DVec3,
+    /// Direction (for camera rays: z = -1 in camera space).
+    pub direction: DVec3,
+}
+
+/// Pinhole intrinsics shared by every image: size and focal length (pixels).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Intrinsics {
+    /// Image width (pixels).
+    pub width: u32,
+    /// Image height (pixels).
+    pub height: u32,
+    /// Focal length (pixels), square pixels, principal point at the image centre.
+    pub focal: f64,
+}
+
+impl Intrinsics {
+    /// Camera-space direction through the centre of pixel (`i`, `j`) = (column, row).
+    pub fn camera_direction(&self, i: u32, j: u32) -> DVec3 {
+        let u = i as f64 + 0.5 - 0.5 * self.width as f64;
+        let v = j as f64 + 0.5 - 0.5 * self.height as f64;
+        DVec3::new(u / self.focal, -v / self.focal, -1.0)
+    }
+
+    /// The world ray of pixel (`i`, `j`) for a camera at `pose` (camera-to-world).
+    pub fn ray(&self, pose: &Pose, i: u32, j: u32) -> Ray {
+        Ray { origin: pose.position, direction: pose.rotation * self.camera_direction(i, j) }
+    }
+
+    /// The ray in NDC (see the module doc) with near plane `near` (the reference uses 1).
+    pub fn ndc(&self, ray: &Ray, near: f64) -> Ray {
+        ndc_ray(self.width, self.height, self.focal, near, ray)
+    }
+}
+
+/// NeRF's `ndc_rays` for a `width` x `height` image of focal `focal` (pixels), near plane `near`
+/// (formula in the module doc). The ray must not be parallel to the image plane.
+pub fn ndc_ray(width: u32, height: u32, focal: f64, near: f64, ray: &Ray) -> Ray {
+    let (o, d) = (ray.origin, ray.direction);
+    // shift the origin to the near plane z = -near
+    let t = -(near + o.z) / d.z;
+    let o = o + t * d;
+    // project
+    let ax = -focal / (0.5 * width as f64);
+    let ay = -focal / (0.5 * height as f64);
+    let origin = DVec3::new(ax * o.x / o.z, ay * o.y / o.z, 1.0 + 2.0 * near / o.z);
+    let direction = DVec3::new(ax * (d.x / d.z - o.x / o.z), ay * (d.y / d.z - o.y / o.z), -2.0 * near / o.z);
+    Ray { origin, direction }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DQuat;
+
+    const K: Intrinsics = Intrinsics { width: 40, height: 30, focal: 50.0 };
+
+    /// NDC of a camera-space point (x, y, z), z < 0: the projective map the rays follow.
+    fn ndc_point(p: DVec3, near: f64) -> DVec3 {
+        let ax = -K.focal / (0.5 * K.width as f64);
+        let ay = -K.focal / (0.5 * K.height as f64);
+        DVec3::new(ax * p.x / p.z, ay * p.y / p.z, 1.0 + 2.0 * near / p.z)
+    }
+
+    #[test]
+    fn pixel_centre_ray_hits_the_pixel() {
+        // a point on the ray of pixel (3, 7) at depth 2 projects back to (3.5, 7.5) with K
+        let r = K.ray(&Pose { rotation: DQuat::IDENTITY, position: DVec3::ZERO }, 3, 7);
+        let p = r.origin + 2.0 * r.direction;
+        let u = K.focal * p.x / -p.z + 20.0;
+        let v = -K.focal * p.y / -p.z + 15.0;
+        assert!((u - 3.5).abs() < 1e-12 && (v - 7.5).abs() < 1e-12, "{u} {v}");
+    }
+
+    #[test]
+    fn ndc_maps_known_points() {
+        let cam = Pose { rotation: DQuat::IDENTITY, position: DVec3::ZERO };
+        let r = K.ray(&cam, 5, 21);
+        let n = ndc_ray(K.width, K.height, K.focal, 1.0, &r);
+        // the origin is the near-plane point: NDC depth -1
+        assert!((n.origin.z + 1.0).abs() < 1e-12, "{}", n.origin);
+        // a point at depth 4 on the ray is o' + s d' with s = 1 - near / depth = 0.75
+        let p = r.origin + 4.0 * r.direction;
+        let want = ndc_point(p, 1.0);
+        let got = n.origin + 0.75 * n.direction;
+        assert!((got - want).length() < 1e-12, "{got} vs {want}");
+        // the explicit formula for the centre pixel-ish ray through (0.2, -0.1, -1) at depth 2:
+        // x' = -f/(W/2) * 0.4/-2 = 2.5 * 0.2 = 0.5, y' = -50/15 * -0.2/-2 = -1/3, z' = 1 - 2/2 = 0
+        let q = ndc_point(DVec3::new(0.4, -0.2, -2.0), 1.0);
+        assert!((q - DVec3::new(0.5, -1.0 / 3.0, 0.0)).length() < 1e-12, "{q}");
+        // infinity: s = 1 reaches depth 1
+        assert!(((n.origin + n.direction).z - 1.0).abs() < 1e-12);
+    }
+}

@@ -1,8 +1,9 @@
 //! The unidirectional path tracer (pbrt's `PathIntegrator`, Mitsuba's `path`).
 //!
 //! For each camera sample: trace a path; at every hit add the emitted radiance (weighted by MIS
-//! against light sampling), then next-event estimation to one light sampled by power (weighted
-//! by MIS against BSDF sampling, power heuristic), then continue along a BSDF-sampled direction.
+//! against light sampling), then next-event estimation to every delta light and to one light
+//! sampled by power (weighted by MIS against BSDF sampling, power heuristic), then continue
+//! along a BSDF-sampled direction.
 //!
 //! Depth follows Mitsuba: `max_depth` counts path segments, so 1 shows emitters only and 2 gives
 //! direct lighting; Russian roulette starts at `rr_depth` with survival
@@ -204,8 +205,9 @@ impl<'a> Renderer<'a> {
             let (u_light, u_sel) = (Vec2::new(a[0], a[1]), a[2]);
             let (u_dir, u_lobe, u_rr) = (Vec2::new(b[0], b[1]), b[2], b[3]);
 
-            // next-event estimation: one light sampled by power
-            if let Some(ls) = self.lights.sample(scene, sh.p, u_sel, u_light) {
+            // next-event estimation: every delta light, plus one light sampled by power
+            let sampled = self.lights.sample(scene, sh.p, u_sel, u_light);
+            for ls in self.lights.delta_incident(scene, sh.p).chain(sampled) {
                 let wi_local = sh.frame.to_local(ls.wi);
                 if ls.wi.dot(ng_side) > 0.0 {
                     let (f, bsdf_pdf) = bsdf.eval_and_pdf(wo, wi_local);

@@ -5,14 +5,17 @@
 //! share the selection probability equally (`1 / (n_infinite + 1)` each), because an infinite
 //! light's power (`pi r^2 ...`) says little about how much of it reaches a given point. Within
 //! the bounded group, lights are chosen in proportion to their power `Phi`:
-//! - emissive triangle: `Phi = pi * A * lum(Le)` (doubled when two-sided), sampled uniformly by
-//!   area and converted to solid angle (`pdf = p_sel / A * d^2 / |cos theta_l|`);
-//! - point light: `Phi = 4 pi lum(I)`; spot: `Phi = 2 pi lum(I) (1 - (cos inner + cos outer)/2)`.
+//! emissive triangle: `Phi = pi * A * lum(Le)` (doubled when two-sided), sampled uniformly by
+//! area and converted to solid angle (`pdf = p_sel / A * d^2 / |cos theta_l|`).
 //!
 //! The environment's direction is then importance-sampled by its own map distribution.
 //!
 //! Punctual and directional lights are delta lights: they are reached only by NEE, never by
-//! BSDF sampling, so their contribution needs no MIS weight.
+//! BSDF sampling, so their contribution needs no MIS weight. They are *not* in the selection
+//! distribution: every shading point evaluates all of them ([`Lights::delta_incident`], one
+//! shadow ray each), as well as one light sampled from the distribution. Choosing the sun with
+//! probability 1/3 and weighting it by 3 would make sunlit pixels the noisiest of all (and, frame
+//! to frame, fire false events); evaluating it always costs one shadow ray per delta light.
 
 use glam::{Vec2, Vec3};
 
@@ -30,8 +33,6 @@ pub fn luminance(c: Vec3) -> f32 {
 enum LightRef {
     /// An emissive triangle (mesh index).
     Triangle(u32),
-    /// An index into `Scene::lights`.
-    Punctual(u32),
     /// The environment.
     Environment,
 }
@@ -132,20 +133,6 @@ impl Lights {
             infinite.push(false);
             area.push(tri_area);
         }
-        for (i, l) in scene.lights.iter().enumerate() {
-            let (phi, is_infinite) = match l {
-                PunctualLight::Point { intensity, .. } => (4.0 * std::f32::consts::PI * luminance(*intensity), false),
-                PunctualLight::Spot { intensity, inner_cone, outer_cone, .. } => (
-                    std::f32::consts::TAU * luminance(*intensity) * (1.0 - 0.5 * (inner_cone.cos() + outer_cone.cos())),
-                    false,
-                ),
-                PunctualLight::Directional { irradiance, .. } => (luminance(*irradiance), true),
-            };
-            table.push(LightRef::Punctual(i as u32));
-            power.push(phi);
-            infinite.push(is_infinite);
-            area.push(0.0);
-        }
         let mut env_entry = None;
         if !scene.environment.is_black() {
             env_entry = Some(table.len() as u32);
@@ -172,7 +159,8 @@ impl Lights {
         Lights { table, distribution, tri_entry, area, env_entry, bounds }
     }
 
-    /// True when the scene has no light at all.
+    /// True when the scene has no light to *sample* (delta lights are not sampled; see
+    /// [`Lights::delta_incident`]).
     pub fn is_empty(&self) -> bool {
         self.table.is_empty() || self.distribution.total <= 0.0
     }
@@ -211,10 +199,6 @@ impl Lights {
                 let pdf = p_sel / self.area[entry] * d2 / cos_l;
                 Some(LightSample { wi, dist, radiance, pdf, is_delta: false })
             }
-            LightRef::Punctual(i) => {
-                let (wi, dist, radiance) = punctual_incident(&scene.lights[i as usize], p)?;
-                Some(LightSample { wi, dist, radiance, pdf: p_sel, is_delta: true })
-            }
             LightRef::Environment => {
                 let s = scene.environment.sample(u)?;
                 if s.pdf <= 0.0 {
@@ -229,6 +213,15 @@ impl Lights {
                 })
             }
         }
+    }
+
+    /// Every delta light (point, spot, directional) as seen from `p`, with `pdf = 1`: the
+    /// integrator adds all of them at each shading point.
+    pub fn delta_incident<'s>(&self, scene: &'s Scene, p: Vec3) -> impl Iterator<Item = LightSample> + 's {
+        scene.lights.iter().filter_map(move |l| {
+            let (wi, dist, radiance) = punctual_incident(l, p)?;
+            Some(LightSample { wi, dist, radiance, pdf: 1.0, is_delta: true })
+        })
     }
 
     /// Solid-angle density with which [`Lights::sample`] picks the point `q` (normal `ng_q`, unit)

@@ -115,6 +115,7 @@ fn event_counts(
         (s.width, s.height, s.spp, s.max_depth, s.seed, s.sampler) =
             (c.width, c.height, spp, c.max_depth, c.seed, c.sampler);
         s.clamp = c.clamp;
+        s.light_samples = c.light_samples;
         s.frame = match c.noise_pattern {
             NoisePattern::Fixed => 0,
             NoisePattern::PerFrame => k as u64,

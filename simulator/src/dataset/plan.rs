@@ -74,6 +74,7 @@ struct RenderIdentity<'a> {
     seed: u64,
     sampler: crate::render::sampler::SamplerKind,
     clamp_bits: u32,
+    light_samples: u32,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -219,6 +220,7 @@ impl Plan {
                 seed: config.seed,
                 sampler: config.sampler,
                 clamp_bits: config.clamp.to_bits(),
+                light_samples: config.light_samples,
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })
@@ -287,6 +289,9 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
     }
     if d.max_depth == 0 {
         return bad("dataset.max_depth", "0 must be at least 1 path segment".into());
+    }
+    if d.light_samples == 0 || d.light_samples > 64 {
+        return bad("dataset.light_samples", format!("{} must be 1..=64", d.light_samples));
     }
     if !(d.clamp >= 0.0 && d.clamp.is_finite()) {
         return bad("dataset.clamp", format!("{} must be >= 0 (0 turns clamping off)", d.clamp));

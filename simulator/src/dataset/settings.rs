@@ -82,6 +82,9 @@ pub struct DatasetConfig {
     /// directly (radiance units; 0 = off). Removes fireflies that flicker between frames and fire
     /// false events, at the cost of darkening rare very bright paths (see `evsim dataset-noise`).
     pub clamp: f32,
+    /// Light samples per path vertex (>= 1): splitting the direct-light estimate lowers its noise
+    /// (sky visibility, the choice among area lights) at the cost of one shadow ray each.
+    pub light_samples: u32,
 }
 
 impl Default for DatasetConfig {
@@ -105,6 +108,7 @@ impl Default for DatasetConfig {
             response: CameraResponse::default(),
             gain: 1.0,
             clamp: 0.0,
+            light_samples: 1,
         }
     }
 }
@@ -134,6 +138,8 @@ pub struct Overrides {
     pub noise_pattern: Option<NoisePattern>,
     /// `[dataset] clamp`.
     pub clamp: Option<f32>,
+    /// `[dataset] light_samples`.
+    pub light_samples: Option<u32>,
 }
 
 impl Overrides {
@@ -158,5 +164,6 @@ impl Overrides {
         d.seed = self.seed.unwrap_or(d.seed);
         d.noise_pattern = self.noise_pattern.unwrap_or(d.noise_pattern);
         d.clamp = self.clamp.unwrap_or(d.clamp);
+        d.light_samples = self.light_samples.unwrap_or(d.light_samples);
     }
 }

@@ -138,6 +138,7 @@ pub(crate) fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -
     s.seed = c.seed;
     s.sampler = c.sampler;
     s.clamp = c.clamp;
+    s.light_samples = c.light_samples;
     if sharp {
         s.spp = plan.sharp_spp;
         // sharp renders draw from their own streams (far from any sequence frame index)

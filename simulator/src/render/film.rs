@@ -56,6 +56,8 @@ pub struct RenderSettings {
     /// Largest channel of any one path contribution except directly visible emitters (sample
     /// clamping against fireflies; biased); 0 = off (the default).
     pub clamp: f32,
+    /// Light samples per path vertex (>= 1; splitting: less direct-light noise per primary ray).
+    pub light_samples: u32,
 }
 
 impl RenderSettings {
@@ -73,6 +75,7 @@ impl RenderSettings {
             camera,
             sampler: SamplerKind::default(),
             clamp: 0.0,
+            light_samples: 1,
         }
     }
 }

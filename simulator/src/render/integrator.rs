@@ -163,6 +163,8 @@ impl<'a> Renderer<'a> {
         let mut prev_bsdf_pdf: Option<f32> = None;
         let mut prev_p = origin;
         let mut depth = 0u32;
+        // light samples per vertex (splitting): MIS weighs N light samples against one BSDF sample
+        let n_ls = s.light_samples.max(1) as f32;
         loop {
             let hit = self.accel.intersect(o, d, 0.0, f32::INFINITY);
             depth += 1; // this segment
@@ -172,7 +174,7 @@ impl<'a> Renderer<'a> {
                 if le != Vec3::ZERO {
                     let w = match prev_bsdf_pdf {
                         None => 1.0,
-                        Some(pb) => power_heuristic(pb, self.lights.pdf_environment(&scene.environment, d)),
+                        Some(pb) => power_heuristic(pb, n_ls * self.lights.pdf_environment(&scene.environment, d)),
                     };
                     l += clamp_after_camera(beta * le * w, depth, s.clamp);
                 }
@@ -185,7 +187,7 @@ impl<'a> Renderer<'a> {
             if le != Vec3::ZERO {
                 let w = match prev_bsdf_pdf {
                     None => 1.0,
-                    Some(pb) => power_heuristic(pb, self.lights.pdf_triangle(hit.prim, prev_p, sh.p, sh.ng)),
+                    Some(pb) => power_heuristic(pb, n_ls * self.lights.pdf_triangle(hit.prim, prev_p, sh.p, sh.ng)),
                 };
                 l += clamp_after_camera(beta * le * w, depth, s.clamp);
             }
@@ -205,16 +207,24 @@ impl<'a> Renderer<'a> {
             let (u_light, u_sel) = (Vec2::new(a[0], a[1]), a[2]);
             let (u_dir, u_lobe, u_rr) = (Vec2::new(b[0], b[1]), b[2], b[3]);
 
-            // next-event estimation: every delta light, plus one light sampled by power
-            let sampled = self.lights.sample(scene, sh.p, u_sel, u_light);
-            for ls in self.lights.delta_incident(scene, sh.p).chain(sampled) {
+            // next-event estimation: every delta light, plus `light_samples` lights sampled by
+            // power (the first from `a`, further ones from fresh numbers after `b`, so that one
+            // light sample consumes exactly the numbers it always did)
+            let mut sampled = Vec::with_capacity(s.light_samples.max(1) as usize);
+            sampled.push(self.lights.sample(scene, sh.p, u_sel, u_light));
+            for _ in 1..s.light_samples.max(1) {
+                let c = rng.next_4d();
+                sampled.push(self.lights.sample(scene, sh.p, c[2], Vec2::new(c[0], c[1])));
+            }
+            for ls in self.lights.delta_incident(scene, sh.p).chain(sampled.into_iter().flatten()) {
                 let wi_local = sh.frame.to_local(ls.wi);
                 if ls.wi.dot(ng_side) > 0.0 {
                     let (f, bsdf_pdf) = bsdf.eval_and_pdf(wo, wi_local);
                     if f != Vec3::ZERO {
                         let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) - 1e-4 } else { f32::INFINITY };
                         if !self.accel.occluded(p_off, ls.wi, 0.0, tmax) {
-                            let w = if ls.is_delta { 1.0 } else { power_heuristic(ls.pdf, bsdf_pdf) };
+                            // delta lights: once, no MIS; sampled lights: 1/N each, MIS with N
+                            let w = if ls.is_delta { 1.0 } else { power_heuristic(n_ls * ls.pdf, bsdf_pdf) / n_ls };
                             l += clamp_after_camera(beta * f * ls.radiance * (w / ls.pdf), depth + 1, s.clamp);
                         }
                     }

@@ -152,3 +152,36 @@ fn clamping_only_darkens_and_never_touches_directly_seen_emitters() {
     let direct = RenderSettings { clamp: 0.1, ..settings(4, 1) };
     assert!((r.render(&direct, None).mean() - Vec3::ONE).abs().max_element() < 1e-6);
 }
+
+#[test]
+fn several_light_samples_per_vertex_keep_the_expectation() {
+    // furnace at depth 3: L = 1.75 whatever the number of light samples (MIS with N light
+    // samples against one BSDF sample stays unbiased)
+    let scene = furnace_scene();
+    let r = Renderer::new(&scene);
+    let one =
+        r.render(&RenderSettings { sampler: crate::render::sampler::SamplerKind::Independent, ..settings(4, 3) }, None);
+    let four = r.render(
+        &RenderSettings {
+            light_samples: 4,
+            sampler: crate::render::sampler::SamplerKind::Independent,
+            ..settings(4, 3)
+        },
+        None,
+    );
+    for img in [&one, &four] {
+        assert!((img.mean().x - 1.75).abs() < 0.03, "{}", img.mean());
+    }
+    // a plane under a constant sky with splitting still reflects its albedo
+    let mut mesh = TriangleMesh::default();
+    let s = 50.0;
+    quad(&mut mesh, [Vec3::new(-s, 0., -s), Vec3::new(-s, 0., s), Vec3::new(s, 0., s), Vec3::new(s, 0., -s)], 0);
+    let mut mat = lambert(0.6, 0.0);
+    mat.double_sided = true;
+    let plane = Scene { mesh, materials: vec![mat], environment: Environment::Constant(Vec3::ONE), ..Scene::default() };
+    let r = Renderer::new(&plane);
+    let cam = Camera::look_at(Vec3::new(0.0, 3.0, 0.0), Vec3::ZERO, Vec3::Z, 0.5);
+    let st = RenderSettings { light_samples: 3, max_depth: 2, ..RenderSettings::new(cam) };
+    let img = r.render(&RenderSettings { width: 16, height: 12, spp: 64, ..st }, None);
+    assert!((img.mean() - Vec3::splat(0.6)).abs().max_element() < 0.01, "{}", img.mean());
+}

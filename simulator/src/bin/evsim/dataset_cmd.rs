@@ -68,6 +68,9 @@ pub struct OverrideArgs {
     /// Override [dataset] clamp: largest channel of one path contribution (0 = off).
     #[arg(long)]
     pub clamp: Option<f32>,
+    /// Override [dataset] light_samples: light samples per path vertex.
+    #[arg(long)]
+    pub light_samples: Option<u32>,
 }
 
 impl OverrideArgs {
@@ -85,6 +88,7 @@ impl OverrideArgs {
             seed: self.seed,
             noise_pattern: self.noise_pattern,
             clamp: self.clamp,
+            light_samples: self.light_samples,
         }
     }
 }

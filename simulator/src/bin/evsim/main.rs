@@ -173,6 +173,7 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         camera,
         sampler: args.sampler,
         clamp: args.clamp,
+        light_samples: 1,
     })
 }
 

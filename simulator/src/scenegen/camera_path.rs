@@ -33,3 +33,18 @@ pub fn keys_toml(keys: &[Key]) -> String {
     }
     s
 }
+
+/// The `[camera]` and constant `[environment]` tables shared by the generated scene files:
+/// camera at `eye` looking at `target` (printed with `decimals` digits), vertical FOV
+/// `fov_y_deg`, and a constant sky of radiance `sky`. Ends with a newline.
+pub fn camera_and_sky(eye: glam::Vec3, target: glam::Vec3, fov_y_deg: f32, decimals: usize, sky: [f32; 3]) -> String {
+    let v = |p: glam::Vec3| format!("[{:.d$}, {:.d$}, {:.d$}]", p.x, p.y, p.z, d = decimals);
+    format!(
+        "[camera]\norigin = {}\ntarget = {}\nfov = {fov_y_deg:.1}\nfov_axis = \"y\"\n\n[environment]\ntype = \"constant\"\nradiance = [{}, {}, {}]\n",
+        v(eye),
+        v(target),
+        sky[0],
+        sky[1],
+        sky[2]
+    )
+}

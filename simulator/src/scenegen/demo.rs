@@ -208,16 +208,7 @@ fn toml_text() -> String {
 # (simulator/src/scenegen/demo.rs); regenerate rather than edit the glTF.
 scene = "scene.gltf"
 
-[camera]
-origin = [{ex:.1}, {ey:.1}, {ez:.1}]
-target = [{tx:.1}, {ty:.1}, {tz:.1}]
-fov = {FOV_Y_DEG:.1}
-fov_axis = "y"
-
-[environment]
-type = "constant"
-radiance = [0.5, 0.55, 0.6]
-
+{camera_and_sky}
 # a fast 0.25 s orbit in front of the objects
 [trajectory]
 type = "fast_motion"
@@ -237,9 +228,7 @@ views = 9
 first_view_ms = 25.0
 exposure_ms = 20.0
 "#,
-        ex = EYE.x,
-        ey = EYE.y,
-        ez = EYE.z,
+        camera_and_sky = super::camera_path::camera_and_sky(EYE, TARGET, FOV_Y_DEG, 1, [0.5, 0.55, 0.6]),
         tx = TARGET.x,
         ty = TARGET.y,
         tz = TARGET.z,

@@ -517,16 +517,7 @@ fn toml_text() -> String {
 # (simulator/src/scenegen/factory.rs); regenerate rather than edit.
 scene = "scene.gltf"
 
-[camera]
-origin = [{ex:.2}, {ey:.2}, {ez:.2}]
-target = [{tx:.2}, {ty:.2}, {tz:.2}]
-fov = {FOV_Y_DEG:.1}
-fov_axis = "y"
-
-[environment]
-type = "constant"
-radiance = [0.42, 0.47, 0.55]
-
+{camera_and_sky}
 # fast hand-held motion, about 1 s
 {traj}
 # the paper's defaults: 600x400, 1000 FPS, 40 ms exposure, 16 spp, threshold 0.2 ([events])
@@ -536,12 +527,7 @@ views = 30
 sharp_every = 8
 max_depth = 3
 "#,
-        ex = EYE.x,
-        ey = EYE.y,
-        ez = EYE.z,
-        tx = TARGET.x,
-        ty = TARGET.y,
-        tz = TARGET.z,
+        camera_and_sky = super::camera_path::camera_and_sky(EYE, TARGET, FOV_Y_DEG, 2, [0.42, 0.47, 0.55]),
         traj = keys_toml(&keys()),
     )
 }

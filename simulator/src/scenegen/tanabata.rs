@@ -456,16 +456,7 @@ fn toml_text() -> String {
 # (simulator/src/scenegen/tanabata.rs); regenerate rather than edit the glTF.
 scene = "scene.gltf"
 
-[camera]
-origin = [{ex:.1}, {ey:.1}, {ez:.1}]
-target = [{tx:.1}, {ty:.1}, {tz:.1}]
-fov = {FOV_Y_DEG:.1}
-fov_axis = "y"
-
-[environment]
-type = "constant"
-radiance = [0.32, 0.36, 0.5]
-
+{camera_and_sky}
 # 1 s of hand-held shake while walking into the street: direction and speed change every 0.1 s
 [trajectory]
 type = "keys"
@@ -480,12 +471,7 @@ max_depth = 3
 c_pos = 0.2
 c_neg = 0.2
 "#,
-        ex = EYE.x,
-        ey = EYE.y,
-        ez = EYE.z,
-        tx = TARGET.x,
-        ty = TARGET.y,
-        tz = TARGET.z,
+        camera_and_sky = super::camera_path::camera_and_sky(EYE, TARGET, FOV_Y_DEG, 1, [0.32, 0.36, 0.5]),
     )
 }
 

@@ -671,16 +671,7 @@ fn toml_text() -> String {
 # (simulator/src/scenegen/trolley.rs); regenerate rather than edit the glTF.
 scene = "scene.gltf"
 
-[camera]
-origin = [{ex:.1}, {ey:.1}, {ez:.1}]
-target = [{tx:.1}, {ty:.1}, {tz:.1}]
-fov = {FOV_Y_DEG:.1}
-fov_axis = "y"
-
-[environment]
-type = "constant"
-radiance = [0.55, 0.62, 0.75]
-
+{camera_and_sky}
 # 1 s sideways dolly along the street with a small wobble: a consistent horizontal blur axis
 [trajectory]
 type = "keys"
@@ -695,12 +686,7 @@ max_depth = 3
 c_pos = 0.2
 c_neg = 0.2
 "#,
-        ex = EYE.x,
-        ey = EYE.y,
-        ez = EYE.z,
-        tx = TARGET.x,
-        ty = TARGET.y,
-        tz = TARGET.z,
+        camera_and_sky = super::camera_path::camera_and_sky(EYE, TARGET, FOV_Y_DEG, 1, [0.55, 0.62, 0.75]),
     )
 }
 

@@ -1,0 +1,305 @@
+//! One level of the radiance field (coarse or fine): VM volume features + positional encoding
+//! -> density MLP -> (raw density, features); features + encoded view direction -> colour MLP
+//! -> sigmoid RGB (linear colour). A fine level may read several volumes (the reference's fine
+//! level concatenates the coarse volume's 32 features with its own 32); volumes are shared by
+//! parameter offset, so their gradients add up.
+//!
+//! Kernels run on a chunk of `p` samples with every activation kept in a reusable
+//! [`FieldWorkspace`] (rows = samples), so a forward + backward over a chunk allocates nothing.
+
+use super::encoding;
+use super::mlp::{Act, Dense};
+use super::params::Layout;
+use super::real::Real;
+use super::vm::VmVolume;
+
+/// Shape of one field level.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FieldShape {
+    /// Positional-encoding frequencies for positions (reference: 10).
+    pub pe_pos: usize,
+    /// Positional-encoding frequencies for view directions (reference: 4).
+    pub pe_dir: usize,
+    /// Hidden widths of the density MLP (reference coarse: [64], fine: [256]).
+    pub density_hidden: Vec<usize>,
+    /// Features passed from the density MLP to the colour MLP (reference: 15 coarse, 128 fine).
+    pub features: usize,
+    /// Hidden widths of the colour MLP (reference coarse: [64, 64], fine: [256, 256]).
+    pub colour_hidden: Vec<usize>,
+    /// Whether the MLP layers have biases (reference: no).
+    pub bias: bool,
+}
+
+/// A field level: the volumes it reads and its two MLPs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Field {
+    /// Volumes whose features are concatenated at the density MLP's input.
+    pub volumes: Vec<VmVolume>,
+    /// Shape.
+    pub shape: FieldShape,
+    /// Density MLP layers; the last outputs 1 + features (no activation).
+    pub density: Vec<Dense>,
+    /// Colour MLP layers; the last outputs 3 with a sigmoid.
+    pub colour: Vec<Dense>,
+}
+
+/// Reusable buffers for one chunk of samples.
+#[derive(Clone, Debug, Default)]
+pub struct FieldWorkspace<R> {
+    cap: usize,
+    /// Raw VM components per volume (p x n_comps).
+    comps: Vec<Vec<R>>,
+    /// Density MLP input: volume features then PE(x) (p x d_in).
+    x_density: Vec<R>,
+    /// Activations of the density MLP layers (the last is p x (1 + features)).
+    h_density: Vec<Vec<R>>,
+    /// Colour MLP input: features then PE(d).
+    x_colour: Vec<R>,
+    /// Activations of the colour MLP layers (the last is p x 3, the colour).
+    h_colour: Vec<Vec<R>>,
+    /// Gradient buffers (same shapes, reused across layers).
+    g_a: Vec<R>,
+    g_b: Vec<R>,
+    g_x: Vec<R>,
+    g_comps: Vec<R>,
+}
+
+impl Field {
+    /// Builds a level reading `volumes`, allocating its MLPs in `layout` under `name`.
+    pub fn new(layout: &mut Layout, name: &str, volumes: Vec<VmVolume>, shape: FieldShape) -> Field {
+        let vol_features: usize = volumes.iter().map(|v| v.n_features()).sum();
+        let mut n_in = vol_features + encoding::width(shape.pe_pos);
+        let mut density = Vec::new();
+        for (i, &w) in shape.density_hidden.iter().enumerate() {
+            density.push(Dense::new(layout, &format!("{name}.density.{i}"), n_in, w, shape.bias, Act::Relu));
+            n_in = w;
+        }
+        let i = shape.density_hidden.len();
+        density.push(Dense::new(
+            layout,
+            &format!("{name}.density.{i}"),
+            n_in,
+            1 + shape.features,
+            shape.bias,
+            Act::None,
+        ));
+        let mut n_in = shape.features + encoding::width(shape.pe_dir);
+        let mut colour = Vec::new();
+        for (i, &w) in shape.colour_hidden.iter().enumerate() {
+            colour.push(Dense::new(layout, &format!("{name}.colour.{i}"), n_in, w, shape.bias, Act::Relu));
+            n_in = w;
+        }
+        let i = shape.colour_hidden.len();
+        colour.push(Dense::new(layout, &format!("{name}.colour.{i}"), n_in, 3, shape.bias, Act::Sigmoid));
+        Field { volumes, shape, density, colour }
+    }
+
+    /// Initialises the MLPs (not the volumes, which the model initialises once each).
+    pub fn init_mlps<R: Real>(&self, params: &mut [R], uniform: &mut impl FnMut() -> f64) {
+        for l in self.density.iter().chain(&self.colour) {
+            l.init(params, uniform);
+        }
+    }
+
+    fn d_density_in(&self) -> usize {
+        self.density[0].n_in
+    }
+
+    fn d_colour_in(&self) -> usize {
+        self.colour[0].n_in
+    }
+
+    /// Multiply-adds per sample of the forward pass (for GFLOP/s figures; backward is ~2x).
+    pub fn macs_per_sample(&self) -> usize {
+        let mlp: usize = self.density.iter().chain(&self.colour).map(|l| l.n_in * l.n_out).sum();
+        let vm: usize = self.volumes.iter().map(|v| v.n_comps() * (v.n_features() + 7)).sum();
+        mlp + vm
+    }
+
+    /// Makes `ws` big enough for chunks of `p` samples.
+    pub fn reserve<R: Real>(&self, ws: &mut FieldWorkspace<R>, p: usize) {
+        if ws.cap >= p && ws.comps.len() == self.volumes.len() && ws.h_density.len() == self.density.len() {
+            return;
+        }
+        let z = |n: usize| vec![R::zero(); p * n];
+        ws.cap = p;
+        ws.comps = self.volumes.iter().map(|v| z(v.n_comps())).collect();
+        ws.x_density = z(self.d_density_in());
+        ws.h_density = self.density.iter().map(|l| z(l.n_out)).collect();
+        ws.x_colour = z(self.d_colour_in());
+        ws.h_colour = self.colour.iter().map(|l| z(l.n_out)).collect();
+        let widest = self.density.iter().chain(&self.colour).map(|l| l.n_out.max(l.n_in)).max().unwrap_or(0);
+        ws.g_a = z(widest);
+        ws.g_b = z(widest);
+        ws.g_x = z(widest);
+        ws.g_comps = z(self.volumes.iter().map(|v| v.n_comps()).max().unwrap_or(0));
+    }
+
+    /// Forward over `p` samples at positions `pos` (p x 3) with unit view directions `dir`
+    /// (p x 3): writes the raw density into `sigma` (p) and the colour into `rgb` (p x 3).
+    pub fn forward<R: Real>(
+        &self,
+        params: &[R],
+        ws: &mut FieldWorkspace<R>,
+        pos: &[[R; 3]],
+        dir: &[[R; 3]],
+        sigma: &mut [R],
+        rgb: &mut [[R; 3]],
+    ) {
+        let p = pos.len();
+        self.reserve(ws, p);
+        let dd = self.d_density_in();
+        // Volume features, then PE(x), side by side in the density input.
+        let mut col = 0;
+        for (v, comps) in self.volumes.iter().zip(&mut ws.comps) {
+            let nc = v.n_comps();
+            for (i, x) in pos.iter().enumerate() {
+                v.components(params, *x, &mut comps[i * nc..(i + 1) * nc]);
+            }
+            v.basis.forward(params, p, comps, nc, &mut ws.x_density[col..], dd);
+            col += v.n_features();
+        }
+        let pw = encoding::width(self.shape.pe_pos);
+        for (i, x) in pos.iter().enumerate() {
+            encoding::encode(*x, self.shape.pe_pos, &mut ws.x_density[i * dd + col..i * dd + col + pw]);
+        }
+        mlp_forward(&self.density, params, p, &ws.x_density, &mut ws.h_density);
+        // Features (after the raw density) and PE(d) form the colour input.
+        let nf = self.shape.features;
+        let dc = self.d_colour_in();
+        let out = ws.h_density.last().expect("density MLP has an output layer");
+        let dw = encoding::width(self.shape.pe_dir);
+        for i in 0..p {
+            sigma[i] = out[i * (1 + nf)];
+            ws.x_colour[i * dc..i * dc + nf].copy_from_slice(&out[i * (1 + nf) + 1..(i + 1) * (1 + nf)]);
+            encoding::encode(dir[i], self.shape.pe_dir, &mut ws.x_colour[i * dc + nf..i * dc + nf + dw]);
+        }
+        mlp_forward(&self.colour, params, p, &ws.x_colour, &mut ws.h_colour);
+        let c = ws.h_colour.last().expect("colour MLP has an output layer");
+        for i in 0..p {
+            rgb[i] = [c[3 * i], c[3 * i + 1], c[3 * i + 2]];
+        }
+    }
+
+    /// Backward of the last [`forward`](Self::forward) on `ws`: accumulates parameter gradients
+    /// into `grads`; when `d_pos` / `d_dir` are given, writes dL/dpos and dL/ddir into them.
+    #[allow(clippy::too_many_arguments)]
+    pub fn backward<R: Real>(
+        &self,
+        params: &[R],
+        grads: &mut [R],
+        ws: &mut FieldWorkspace<R>,
+        pos: &[[R; 3]],
+        d_sigma: &[R],
+        d_rgb: &[[R; 3]],
+        d_pos: Option<&mut [[R; 3]]>,
+        d_dir: Option<&mut [[R; 3]]>,
+    ) {
+        let p = pos.len();
+        let nf = self.shape.features;
+        let dc = self.d_colour_in();
+        let dd = self.d_density_in();
+        // Colour MLP, down to its input (features | PE(d)).
+        for i in 0..p {
+            ws.g_a[3 * i..3 * i + 3].copy_from_slice(&d_rgb[i]);
+        }
+        mlp_backward(&self.colour, params, grads, p, &ws.x_colour, &ws.h_colour, &mut ws.g_a, &mut ws.g_b, &mut ws.g_x);
+        // ws.g_x now holds dL/d x_colour (p x dc).
+        if let Some(d_dir) = d_dir {
+            let dw = encoding::width(self.shape.pe_dir);
+            for i in 0..p {
+                let enc = &ws.x_colour[i * dc + nf..i * dc + nf + dw];
+                d_dir[i] = encoding::backward(enc, &ws.g_x[i * dc + nf..i * dc + nf + dw], self.shape.pe_dir);
+            }
+        }
+        // Density MLP output gradient: (d sigma, d features).
+        for i in 0..p {
+            ws.g_a[i * (1 + nf)] = d_sigma[i];
+            let (src, dst) = (&ws.g_x[i * dc..i * dc + nf], i * (1 + nf) + 1);
+            ws.g_a[dst..dst + nf].copy_from_slice(src);
+        }
+        mlp_backward(
+            &self.density,
+            params,
+            grads,
+            p,
+            &ws.x_density,
+            &ws.h_density,
+            &mut ws.g_a,
+            &mut ws.g_b,
+            &mut ws.g_x,
+        );
+        // ws.g_x holds dL/d x_density (p x dd): per volume through its basis, then the grid.
+        let mut d_pos = d_pos;
+        if let Some(d) = d_pos.as_deref_mut() {
+            let pw = encoding::width(self.shape.pe_pos);
+            let col: usize = self.volumes.iter().map(|v| v.n_features()).sum();
+            for i in 0..p {
+                let enc = &ws.x_density[i * dd + col..i * dd + col + pw];
+                d[i] = encoding::backward(enc, &ws.g_x[i * dd + col..i * dd + col + pw], self.shape.pe_pos);
+            }
+        }
+        let mut col = 0;
+        for (v, comps) in self.volumes.iter().zip(&ws.comps) {
+            let nc = v.n_comps();
+            // d comps = dA B^T, dB += comps^T dA (the basis has no activation).
+            let mut g_feat = std::mem::take(&mut ws.g_x);
+            v.basis.backward(
+                params,
+                grads,
+                p,
+                comps,
+                nc,
+                &[], // y is unused without an activation
+                &mut g_feat[col..],
+                dd,
+                Some((&mut ws.g_comps[..], nc, R::zero())),
+            );
+            ws.g_x = g_feat;
+            for (i, x) in pos.iter().enumerate() {
+                let dp = v.components_backward(params, grads, *x, &ws.g_comps[i * nc..(i + 1) * nc]);
+                if let Some(d) = d_pos.as_deref_mut() {
+                    for a in 0..3 {
+                        d[i][a] += dp[a];
+                    }
+                }
+            }
+            col += v.n_features();
+        }
+    }
+}
+
+/// Forward through a stack of layers: `h[0] = l0(x)`, `h[i] = li(h[i-1])`.
+fn mlp_forward<R: Real>(layers: &[Dense], params: &[R], p: usize, x: &[R], h: &mut [Vec<R>]) {
+    for (i, l) in layers.iter().enumerate() {
+        let (before, after) = h.split_at_mut(i);
+        let input: &[R] = if i == 0 { x } else { &before[i - 1] };
+        l.forward(params, p, input, l.n_in, &mut after[0], l.n_out);
+    }
+}
+
+/// Backward through a stack: `g_out` holds dL/d(last output) on entry; on return `g_x` holds
+/// dL/dx (p x n_in of the first layer). `g_out` and `g_tmp` are scratch.
+#[allow(clippy::too_many_arguments)]
+fn mlp_backward<R: Real>(
+    layers: &[Dense],
+    params: &[R],
+    grads: &mut [R],
+    p: usize,
+    x: &[R],
+    h: &[Vec<R>],
+    g_out: &mut Vec<R>,
+    g_tmp: &mut Vec<R>,
+    g_x: &mut Vec<R>,
+) {
+    for i in (0..layers.len()).rev() {
+        let l = &layers[i];
+        let input: &[R] = if i == 0 { x } else { &h[i - 1] };
+        let target: &mut Vec<R> = if i == 0 { g_x } else { g_tmp };
+        l.backward(params, grads, p, input, l.n_in, &h[i], g_out, l.n_out, Some((&mut target[..], l.n_in, R::zero())));
+        if i > 0 {
+            std::mem::swap(g_out, g_tmp);
+        }
+    }
+}

@@ -1,0 +1,191 @@
+//! Finite-difference checks (f64) of the field kernels: every parameter, positions, directions,
+//! and the TV regulariser.
+
+use super::field::{Field, FieldShape, FieldWorkspace};
+use super::params::Layout;
+use super::vm::VmVolume;
+
+/// A tiny deterministic generator for test inputs (not the engine's RNG).
+struct Lcg(u64);
+impl Lcg {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64) / (1u64 << 53) as f64
+    }
+    fn normal(&mut self) -> f64 {
+        let (u, v) = (self.uniform().max(1e-12), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+fn tiny_field(bias: bool, two_volumes: bool) -> (Field, Layout, Vec<f64>) {
+    let mut layout = Layout::default();
+    let a = VmVolume::new(&mut layout, "a", [5, 6, 7], [2, 3, 2], 4);
+    let mut volumes = vec![a];
+    if two_volumes {
+        volumes.push(VmVolume::new(&mut layout, "b", [4, 4, 5], [1, 2, 2], 3));
+    }
+    let shape =
+        FieldShape { pe_pos: 3, pe_dir: 2, density_hidden: vec![8], features: 3, colour_hidden: vec![6, 5], bias };
+    let field = Field::new(&mut layout, "f", volumes, shape);
+    let mut rng = Lcg(7);
+    let mut params = layout.zeros::<f64>();
+    for v in &field.volumes {
+        // Larger grid values than TensoRF's 0.1 so every path carries a visible gradient.
+        v.init(&mut params, &mut || 5.0 * rng.normal(), &mut || 0.5);
+        let mut r2 = Lcg(11);
+        v.basis.init(&mut params, &mut || r2.uniform());
+    }
+    let mut r3 = Lcg(13);
+    field.init_mlps(&mut params, &mut || r3.uniform());
+    (field, layout, params)
+}
+
+/// Scalar test loss: fixed random weights on every output.
+fn loss(field: &Field, params: &[f64], pos: &[[f64; 3]], dir: &[[f64; 3]], ws: &mut FieldWorkspace<f64>) -> f64 {
+    let p = pos.len();
+    let mut sigma = vec![0.0; p];
+    let mut rgb = vec![[0.0; 3]; p];
+    field.forward(params, ws, pos, dir, &mut sigma, &mut rgb);
+    let (ws_, wr) = weights(p);
+    sigma.iter().zip(&ws_).map(|(a, b)| a * b).sum::<f64>()
+        + rgb.iter().zip(&wr).map(|(a, b)| a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).sum::<f64>()
+}
+
+fn weights(p: usize) -> (Vec<f64>, Vec<[f64; 3]>) {
+    let mut r = Lcg(99);
+    let ws = (0..p).map(|_| r.uniform() - 0.5).collect();
+    let wr = (0..p).map(|_| [r.uniform() - 0.5, r.uniform() - 0.5, r.uniform() - 0.5]).collect();
+    (ws, wr)
+}
+
+fn inputs(p: usize) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let mut r = Lcg(3);
+    let pos = (0..p).map(|_| [r.uniform() * 1.8 - 0.9, r.uniform() * 1.8 - 0.9, r.uniform() * 1.8 - 0.9]).collect();
+    let dir = (0..p)
+        .map(|_| {
+            let d = [r.normal(), r.normal(), r.normal()];
+            let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            [d[0] / n, d[1] / n, d[2] / n]
+        })
+        .collect();
+    (pos, dir)
+}
+
+fn check_field(bias: bool, two_volumes: bool) {
+    let (field, layout, params) = tiny_field(bias, two_volumes);
+    let p = 7;
+    let (pos, dir) = inputs(p);
+    let mut ws = FieldWorkspace::default();
+    let mut sigma = vec![0.0; p];
+    let mut rgb = vec![[0.0; 3]; p];
+    field.forward(&params, &mut ws, &pos, &dir, &mut sigma, &mut rgb);
+    let (d_sigma, d_rgb) = weights(p);
+    let mut grads = layout.zeros::<f64>();
+    let mut d_pos = vec![[0.0; 3]; p];
+    let mut d_dir = vec![[0.0; 3]; p];
+    field.backward(&params, &mut grads, &mut ws, &pos, &d_sigma, &d_rgb, Some(&mut d_pos), Some(&mut d_dir));
+
+    let h = 1e-6;
+    let close = |fd: f64, an: f64, what: &str| {
+        assert!(
+            (fd - an).abs() <= 1e-6 * (1.0 + fd.abs().max(an.abs())),
+            "{what}: finite difference {fd}, analytic {an}"
+        );
+    };
+    // Every parameter.
+    let mut nonzero = 0;
+    for i in 0..params.len() {
+        let mut pp = params.clone();
+        pp[i] += h;
+        let lp = loss(&field, &pp, &pos, &dir, &mut ws);
+        pp[i] -= 2.0 * h;
+        let lm = loss(&field, &pp, &pos, &dir, &mut ws);
+        let fd = (lp - lm) / (2.0 * h);
+        let name = &layout.tensors.iter().find(|t| t.range.contains(&i)).unwrap().name;
+        close(fd, grads[i], &format!("param {i} ({name})"));
+        nonzero += (grads[i].abs() > 1e-8) as usize;
+    }
+    assert!(nonzero > params.len() / 4, "only {nonzero} of {} gradients are non-zero", params.len());
+    // Positions and directions.
+    for s in 0..p {
+        for a in 0..3 {
+            for (which, base, an) in [("pos", &pos, d_pos[s][a]), ("dir", &dir, d_dir[s][a])] {
+                let mut xp = base.clone();
+                xp[s][a] += h;
+                let mut xm = base.clone();
+                xm[s][a] -= h;
+                let (lp, lm) = if which == "pos" {
+                    (loss(&field, &params, &xp, &dir, &mut ws), loss(&field, &params, &xm, &dir, &mut ws))
+                } else {
+                    (loss(&field, &params, &pos, &xp, &mut ws), loss(&field, &params, &pos, &xm, &mut ws))
+                };
+                close((lp - lm) / (2.0 * h), an, &format!("d{which}[{s}][{a}]"));
+                assert!(an.abs() > 1e-9, "d{which}[{s}][{a}] is zero");
+            }
+        }
+    }
+}
+
+#[test]
+fn field_gradients_match_finite_differences_without_bias() {
+    check_field(false, false);
+}
+
+#[test]
+fn field_gradients_match_finite_differences_with_bias_and_two_volumes() {
+    check_field(true, true);
+}
+
+#[test]
+fn tv_gradient_matches_finite_differences() {
+    let (field, layout, params) = tiny_field(false, false);
+    let v = &field.volumes[0];
+    let mut grads = layout.zeros::<f64>();
+    let l0 = v.tv(&params, &mut grads, 0.7, 0.3);
+    assert!(l0 > 0.0);
+    let h = 1e-6;
+    for i in 0..v.basis.w {
+        let mut pp = params.clone();
+        let mut scratch = layout.zeros::<f64>();
+        pp[i] += h;
+        let lp = v.tv(&pp, &mut scratch, 0.7, 0.3);
+        pp[i] -= 2.0 * h;
+        let lm = v.tv(&pp, &mut scratch, 0.7, 0.3);
+        let fd = (lp - lm) / (2.0 * h);
+        assert!((fd - grads[i]).abs() <= 1e-6 * (1.0 + fd.abs()), "tv param {i}: fd {fd} analytic {}", grads[i]);
+        assert!(grads[i] != 0.0);
+    }
+}
+
+#[test]
+fn tv_of_a_constant_grid_is_zero() {
+    let (field, layout, mut params) = tiny_field(false, false);
+    params.iter_mut().for_each(|p| *p = 0.25);
+    let mut grads = layout.zeros::<f64>();
+    assert_eq!(field.volumes[0].tv(&params, &mut grads, 1.0, 1.0), 0.0);
+    assert!(grads.iter().all(|&g| g == 0.0));
+}
+
+#[test]
+fn vm_components_interpolate_grid_values_at_nodes() {
+    let (field, _, params) = tiny_field(false, false);
+    let v = &field.volumes[0];
+    // At grid node (1, 2, 3) of a 5x6x7 grid over [-1, 1]^3 each component is plane * line.
+    let node = |i: usize, n: usize| -1.0 + 2.0 * i as f64 / (n - 1) as f64;
+    let pos = [node(1, 5), node(2, 6), node(3, 7)];
+    let mut out = vec![0.0; v.n_comps()];
+    v.components(&params, pos, &mut out);
+    let idx = [1usize, 2, 3];
+    let mut o = 0;
+    for m in 0..3 {
+        let [a, b] = super::vm::MAT[m];
+        let n = v.comps[m];
+        for k in 0..n {
+            let plane = params[v.planes[m] + (idx[b] * v.res[a] + idx[a]) * n + k];
+            let line = params[v.lines[m] + idx[super::vm::VEC[m]] * n + k];
+            assert!((out[o + k] - plane * line).abs() < 1e-12);
+        }
+        o += n;
+    }
+}

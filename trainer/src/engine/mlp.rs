@@ -1,0 +1,171 @@
+//! Fully connected layers over a chunk of samples, forward and backward.
+//!
+//! A chunk holds `p` samples as rows: `x` is p x n_in (row stride `ldx`, so a layer can read a
+//! column block of a wider buffer, e.g. a concatenated input), `y = act(x W + b)` is p x n_out.
+//! W is stored row-major n_in x n_out in the flat parameter vector. Backward, from dL/dy:
+//! dL/dz = dL/dy * act'(z) (computed from y), dW += x^T dz, db += sum_rows dz, dx = dz W^T.
+
+use super::params::{Layout, LrClass};
+use super::real::Real;
+
+/// Activation after the affine map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Act {
+    /// Identity.
+    None,
+    /// max(0, z).
+    Relu,
+    /// 1 / (1 + exp(-z)).
+    Sigmoid,
+}
+
+/// One dense layer: its shape, activation and parameter offsets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dense {
+    /// Input width.
+    pub n_in: usize,
+    /// Output width.
+    pub n_out: usize,
+    /// Activation.
+    pub act: Act,
+    /// Offset of W (n_in x n_out, row-major).
+    pub w: usize,
+    /// Offset of the bias (n_out), if the layer has one.
+    pub b: Option<usize>,
+}
+
+impl Dense {
+    /// Allocates W (and b) in `layout`.
+    pub fn new(layout: &mut Layout, name: &str, n_in: usize, n_out: usize, bias: bool, act: Act) -> Dense {
+        let w = layout.alloc(format!("{name}.w"), n_in * n_out, LrClass::Network);
+        let b = bias.then(|| layout.alloc(format!("{name}.b"), n_out, LrClass::Network));
+        Dense { n_in, n_out, act, w, b }
+    }
+
+    /// PyTorch's default initialisation: W and b uniform in +-1/sqrt(n_in).
+    pub fn init<R: Real>(&self, params: &mut [R], rng: &mut impl FnMut() -> f64) {
+        let bound = 1.0 / (self.n_in as f64).sqrt();
+        for v in &mut params[self.w..self.w + self.n_in * self.n_out] {
+            *v = R::of((2.0 * rng() - 1.0) * bound);
+        }
+        if let Some(b) = self.b {
+            for v in &mut params[b..b + self.n_out] {
+                *v = R::of((2.0 * rng() - 1.0) * bound);
+            }
+        }
+    }
+
+    /// y (p x n_out, row stride ldy) = act(x W + b) for p rows of x (row stride ldx).
+    pub fn forward<R: Real>(&self, params: &[R], p: usize, x: &[R], ldx: usize, y: &mut [R], ldy: usize) {
+        let w = &params[self.w..self.w + self.n_in * self.n_out];
+        let beta = match self.b {
+            Some(b) => {
+                let bias = &params[b..b + self.n_out];
+                for r in 0..p {
+                    y[r * ldy..r * ldy + self.n_out].copy_from_slice(bias);
+                }
+                R::one()
+            }
+            None => R::zero(),
+        };
+        R::gemm(
+            p,
+            self.n_in,
+            self.n_out,
+            R::one(),
+            (x, ldx as isize, 1),
+            (w, self.n_out as isize, 1),
+            beta,
+            (y, ldy as isize, 1),
+        );
+        match self.act {
+            Act::None => {}
+            Act::Relu => {
+                for r in 0..p {
+                    for v in &mut y[r * ldy..r * ldy + self.n_out] {
+                        *v = v.max(R::zero());
+                    }
+                }
+            }
+            Act::Sigmoid => {
+                for r in 0..p {
+                    for v in &mut y[r * ldy..r * ldy + self.n_out] {
+                        *v = R::one() / (R::one() + (-*v).exp());
+                    }
+                }
+            }
+        }
+    }
+
+    /// Backward. `dy` (p x n_out, stride ldy) holds dL/dy on entry and dL/dz on return; `y` is
+    /// the forward output. Accumulates dW and db into `grads`; writes (`dx_beta` = 0) or adds
+    /// (`dx_beta` = 1) dL/dx into `dx` when given.
+    #[allow(clippy::too_many_arguments)]
+    pub fn backward<R: Real>(
+        &self,
+        params: &[R],
+        grads: &mut [R],
+        p: usize,
+        x: &[R],
+        ldx: usize,
+        y: &[R],
+        dy: &mut [R],
+        ldy: usize,
+        dx: Option<(&mut [R], usize, R)>,
+    ) {
+        // dL/dz from dL/dy through the activation, using y.
+        match self.act {
+            Act::None => {}
+            Act::Relu => {
+                for r in 0..p {
+                    let (yr, dr) = (&y[r * ldy..r * ldy + self.n_out], &mut dy[r * ldy..r * ldy + self.n_out]);
+                    for (d, &v) in dr.iter_mut().zip(yr) {
+                        *d = if v > R::zero() { *d } else { R::zero() };
+                    }
+                }
+            }
+            Act::Sigmoid => {
+                for r in 0..p {
+                    let (yr, dr) = (&y[r * ldy..r * ldy + self.n_out], &mut dy[r * ldy..r * ldy + self.n_out]);
+                    for (d, &s) in dr.iter_mut().zip(yr) {
+                        *d *= s * (R::one() - s);
+                    }
+                }
+            }
+        }
+        // db += column sums of dz.
+        if let Some(b) = self.b {
+            let db = &mut grads[b..b + self.n_out];
+            for r in 0..p {
+                for (g, &d) in db.iter_mut().zip(&dy[r * ldy..r * ldy + self.n_out]) {
+                    *g += d;
+                }
+            }
+        }
+        // dW += x^T dz  (n_in x p) (p x n_out).
+        R::gemm(
+            self.n_in,
+            p,
+            self.n_out,
+            R::one(),
+            (x, 1, ldx as isize),
+            (dy, ldy as isize, 1),
+            R::one(),
+            (&mut grads[self.w..self.w + self.n_in * self.n_out], self.n_out as isize, 1),
+        );
+        // dx = dz W^T  (p x n_out) (n_out x n_in).
+        if let Some((dx, lddx, beta)) = dx {
+            let w = &params[self.w..self.w + self.n_in * self.n_out];
+            R::gemm(
+                p,
+                self.n_out,
+                self.n_in,
+                R::one(),
+                (dy, ldy as isize, 1),
+                (w, 1, self.n_out as isize),
+                beta,
+                (dx, lddx as isize, 1),
+            );
+        }
+    }
+}

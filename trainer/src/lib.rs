@@ -3,6 +3,8 @@
 //! What lives where:
 //! - [`data`]: the dataset loader (the Ev-DeblurBlender layout): images, poses in the recentred,
 //!   scaled world, the dense trajectory with pose interpolation, events with successors, rays.
+//! - [`metrics`]: PSNR and SSIM of images as scikit-image computes them ([`metrics::ImageRef`]).
 #![warn(missing_docs)]
 
 pub mod data;
+pub mod metrics;

@@ -3,11 +3,12 @@
 //! end), `event_files.rs` and `npy_files.rs` (our files as h5py / numpy read them), `dataset_check.rs`
 //! (the dataset schema check against h5py/numpy-written folders, and `python/read_dataset.py`,
 //! the reference loader's reading, against ours), `dataset_writer.rs` (`evsim dataset` end to
-//! end: layout, re-runs, resume, thread counts, the noise measurement) and `scene_library.rs`
-//! (every dataset scene in `scenes/` makes a dataset that passes the check).
+//! end: layout, re-runs, resume, thread counts, the noise measurement), `scene_library.rs`
+//! (every dataset scene in `scenes/` makes a dataset that passes the check) and
+//! `metrics_skimage.rs` (the trainer's PSNR / SSIM against scikit-image).
 //!
 //! This library holds what those files share: fresh temp folders and the reference Python
-//! (the Mitsuba venv, which also has numpy and h5py), skipped or required by
+//! (the Mitsuba venv, which also has numpy, h5py and scikit-image), skipped or required by
 //! `EVBLUR_REQUIRE_MITSUBA=1` (set by `tests/run.sh`).
 
 use std::ffi::OsStr;

@@ -3,7 +3,10 @@
 //! What lives where:
 //! - [`data`]: the dataset loader (the Ev-DeblurBlender layout): images, poses in the recentred,
 //!   scaled world, the dense trajectory with pose interpolation, events with successors, rays.
+//! - [`engine`]: the CPU radiance-field engine (kernels, gradients, optimiser).
+//! - [`metrics`]: PSNR and SSIM of images as scikit-image computes them ([`metrics::ImageRef`]).
 #![warn(missing_docs)]
 
 pub mod data;
 pub mod engine;
+pub mod metrics;

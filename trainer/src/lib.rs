@@ -4,9 +4,12 @@
 //! - [`data`]: the dataset loader (the Ev-DeblurBlender layout): images, poses in the recentred,
 //!   scaled world, the dense trajectory with pose interpolation, events with successors, rays.
 //! - [`engine`]: the CPU radiance-field engine (kernels, gradients, optimiser).
+//! - [`config`]: a run's settings; [`presets`]: the registry of named methods.
 //! - [`metrics`]: PSNR and SSIM of images as scikit-image computes them ([`metrics::ImageRef`]).
 #![warn(missing_docs)]
 
+pub mod config;
 pub mod data;
 pub mod engine;
 pub mod metrics;
+pub mod presets;

@@ -7,6 +7,10 @@
 //! - [`params`]: the flat parameter vector and its named tensors.
 //! - [`mlp`]: dense layers; [`encoding`]: positional encoding; [`vm`]: TensoRF VM volumes + TV.
 //! - [`field`]: one field level (volumes + density and colour MLPs).
+//! - [`rng`]: counter-seeded generator; [`sampling`]: stratified and importance samples;
+//!   [`volume`]: volume rendering (NeRF eq. 3) and its backward.
+//! - [`model`]: coarse + fine levels over shared volumes; [`renderer`]: a chunk of rays through
+//!   both passes, forward and backward.
 //! - [`adam`]: the optimiser and learning-rate schedule.
 
 pub mod adam;
@@ -15,7 +19,12 @@ pub mod field;
 #[cfg(test)]
 mod field_tests;
 pub mod mlp;
+pub mod model;
 pub mod parallel;
 pub mod params;
 pub mod real;
+pub mod renderer;
+pub mod rng;
+pub mod sampling;
 pub mod vm;
+pub mod volume;

@@ -1,0 +1,119 @@
+//! A radiance-field model: coarse and (optionally) fine levels over shared VM volumes, its
+//! sampling settings and the flat parameter layout.
+//!
+//! Reference shape (`../shared/reference/method.md`): coarse = one VM volume (~256^3, [64,16,16]
+//! components, 32 features) + density MLP 95 -> 64 -> 1+15 + colour MLP 42 -> 64 -> 64 -> 3;
+//! fine = the coarse volume and a second, larger one (~512^3), density MLP 127 -> 256 -> 1+128,
+//! colour MLP 155 -> 256 -> 256 -> 3. Without a fine level the coarse field also evaluates the
+//! importance samples (one network, two sampling passes).
+
+use super::field::{Field, FieldShape};
+use super::params::Layout;
+use super::rng::Rng;
+use super::vm::VmVolume;
+
+/// Shape of one VM volume.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VolumeShape {
+    /// Grid resolution along each axis (the grid is a cube over NDC [-1, 1]^3).
+    pub res: usize,
+    /// Components of the three plane-line pairs (reference coarse: [64, 16, 16]).
+    pub comps: [usize; 3],
+    /// Features after the basis matrix (reference: 32).
+    pub features: usize,
+}
+
+/// Everything that fixes the model's parameters and how rays are sampled.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelConfig {
+    /// The coarse volume (read by both levels).
+    pub coarse_volume: VolumeShape,
+    /// The fine level's own volume (reference: ~512^3); `None`: the fine level reads only the
+    /// coarse volume.
+    pub fine_volume: Option<VolumeShape>,
+    /// The coarse level's MLPs.
+    pub coarse: FieldShape,
+    /// The fine level's MLPs; `None`: one field for both passes.
+    pub fine: Option<FieldShape>,
+    /// Stratified samples per ray (reference: 64).
+    pub n_coarse: usize,
+    /// Importance samples per ray added for the fine pass (reference: 64).
+    pub n_fine: usize,
+    /// Standard deviation of the density noise in training (reference: 1.0).
+    pub density_noise: f64,
+    /// TV weight on the planes (reference: 1e-2 x 5).
+    pub tv_plane: f64,
+    /// TV weight on the lines (reference: 1e-3 x 5).
+    pub tv_line: f64,
+}
+
+/// A built model: layout and levels (the parameters live in a separate flat vector).
+#[derive(Clone, Debug)]
+pub struct Model {
+    /// The configuration it was built from.
+    pub config: ModelConfig,
+    /// Parameter layout.
+    pub layout: Layout,
+    /// Every VM volume (coarse first).
+    pub volumes: Vec<VmVolume>,
+    /// The coarse level.
+    pub coarse: Field,
+    /// The fine level (`None`: the coarse level evaluates the fine samples too).
+    pub fine: Option<Field>,
+}
+
+impl Model {
+    /// Builds the layout of `config`.
+    pub fn new(config: &ModelConfig) -> Model {
+        let mut layout = Layout::default();
+        let vs = |l: &mut Layout, name: &str, s: &VolumeShape| VmVolume::new(l, name, [s.res; 3], s.comps, s.features);
+        let cv = vs(&mut layout, "coarse.vm", &config.coarse_volume);
+        let mut volumes = vec![cv.clone()];
+        let coarse = Field::new(&mut layout, "coarse", vec![cv.clone()], config.coarse.clone());
+        let fine = config.fine.as_ref().map(|shape| {
+            let mut reads = vec![cv.clone()];
+            if let Some(s) = &config.fine_volume {
+                let fv = vs(&mut layout, "fine.vm", s);
+                volumes.push(fv.clone());
+                reads.push(fv);
+            }
+            Field::new(&mut layout, "fine", reads, shape.clone())
+        });
+        Model { config: config.clone(), layout, volumes, coarse, fine }
+    }
+
+    /// The level that evaluates the fine samples.
+    pub fn fine_field(&self) -> &Field {
+        self.fine.as_ref().unwrap_or(&self.coarse)
+    }
+
+    /// Fresh parameters from `seed`: volumes 0.1 N(0, 1), layers PyTorch-uniform.
+    pub fn init(&self, seed: u64) -> Vec<f32> {
+        let mut params = self.layout.zeros::<f32>();
+        let mut rng = Rng::new(seed, 0x1417);
+        let mut normal_rng = Rng::new(seed, 0x1418);
+        for v in &self.volumes {
+            v.init(&mut params, &mut || normal_rng.normal_f64(), &mut || rng.uniform_f64());
+        }
+        self.coarse.init_mlps(&mut params, &mut || rng.uniform_f64());
+        if let Some(f) = &self.fine {
+            f.init_mlps(&mut params, &mut || rng.uniform_f64());
+        }
+        params
+    }
+
+    /// TV regulariser of every volume: adds its gradient to `grads`, returns the loss.
+    pub fn tv(&self, params: &[f32], grads: &mut [f32]) -> f64 {
+        if self.config.tv_plane == 0.0 && self.config.tv_line == 0.0 {
+            return 0.0;
+        }
+        self.volumes.iter().map(|v| v.tv(params, grads, self.config.tv_plane, self.config.tv_line)).sum()
+    }
+
+    /// Samples per ray of the fine pass (coarse + importance).
+    pub fn samples_fine(&self) -> usize {
+        self.config.n_coarse + self.config.n_fine
+    }
+}

@@ -1,0 +1,218 @@
+//! Rendering a chunk of rays through a [`Model`]: stratified coarse samples, the coarse field,
+//! volume rendering, importance samples from the coarse weights, the fine field over the
+//! sorted union, volume rendering again (NeRF's hierarchical sampling); and the whole chain
+//! backward from dL/dC of both passes to the parameters.
+//!
+//! Rays are in NDC (near 0, far 1); `viewdirs` are the unit world-space directions the colour
+//! MLP sees. A chunk is rendered with one field call per pass, so the matrix products see
+//! `rays x samples` rows. Everything lives in a reusable [`Renderer`]: no allocation per chunk
+//! once it has grown to the chunk size.
+
+use super::field::FieldWorkspace;
+use super::model::Model;
+use super::rng::Rng;
+use super::sampling;
+use super::volume::{self, RaySamples, RenderGrad};
+
+/// The rays of a chunk (all three slices have one entry per ray).
+#[derive(Clone, Copy, Debug)]
+pub struct RayChunk<'a> {
+    /// NDC origins.
+    pub origins: &'a [[f32; 3]],
+    /// NDC directions (not normalised).
+    pub dirs: &'a [[f32; 3]],
+    /// Unit view directions in world space.
+    pub viewdirs: &'a [[f32; 3]],
+}
+
+/// One pass's (coarse or fine) per-sample buffers.
+#[derive(Clone, Debug, Default)]
+struct Pass {
+    /// Samples per ray.
+    s: usize,
+    t: Vec<f32>,
+    pos: Vec<[f32; 3]>,
+    dir: Vec<[f32; 3]>,
+    sigma: Vec<f32>,
+    rgb: Vec<[f32; 3]>,
+    noise: Vec<f32>,
+    weights: Vec<f32>,
+    /// Rendered colour per ray.
+    out: Vec<[f32; 3]>,
+    d_sigma: Vec<f32>,
+    d_rgb: Vec<[f32; 3]>,
+    ws: FieldWorkspace<f32>,
+}
+
+impl Pass {
+    fn resize(&mut self, rays: usize, s: usize) {
+        let n = rays * s;
+        self.s = s;
+        self.t.resize(n, 0.0);
+        self.pos.resize(n, [0.0; 3]);
+        self.dir.resize(n, [0.0; 3]);
+        self.sigma.resize(n, 0.0);
+        self.rgb.resize(n, [0.0; 3]);
+        self.noise.resize(n, 0.0);
+        self.weights.resize(n, 0.0);
+        self.out.resize(rays, [0.0; 3]);
+        self.d_sigma.resize(n, 0.0);
+        self.d_rgb.resize(n, [0.0; 3]);
+    }
+
+    /// Positions o + t d and view directions of every sample, from `t`.
+    fn place(&mut self, chunk: &RayChunk, rays: usize) {
+        for r in 0..rays {
+            let (o, d) = (chunk.origins[r], chunk.dirs[r]);
+            for k in 0..self.s {
+                let i = r * self.s + k;
+                let t = self.t[i];
+                self.pos[i] = [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
+                self.dir[i] = chunk.viewdirs[r];
+            }
+        }
+    }
+
+    fn samples(&self, r: usize, dir_norm: f32, train: bool) -> RaySamples<'_, f32> {
+        let range = r * self.s..(r + 1) * self.s;
+        RaySamples {
+            t: &self.t[range.clone()],
+            dir_norm,
+            sigma_raw: &self.sigma[range.clone()],
+            rgb: self.rgb[range.clone()].as_flattened(),
+            noise: train.then(|| &self.noise[range]),
+        }
+    }
+
+    /// Volume-renders every ray of the pass.
+    fn render(&mut self, chunk: &RayChunk, rays: usize, train: bool) {
+        let mut weights = std::mem::take(&mut self.weights);
+        for r in 0..rays {
+            let out = volume::render(
+                &self.samples(r, norm(chunk.dirs[r]), train),
+                &mut weights[r * self.s..(r + 1) * self.s],
+            );
+            self.out[r] = out.rgb;
+        }
+        self.weights = weights;
+    }
+
+    /// Backward through volume rendering: per-sample dL/dsigma_raw and dL/drgb from dL/dC.
+    fn render_backward(&mut self, chunk: &RayChunk, rays: usize, d_out: &[[f32; 3]], train: bool) {
+        let (mut ds, mut dr) = (std::mem::take(&mut self.d_sigma), std::mem::take(&mut self.d_rgb));
+        for r in 0..rays {
+            let range = r * self.s..(r + 1) * self.s;
+            volume::render_backward(
+                &self.samples(r, norm(chunk.dirs[r]), train),
+                &RenderGrad::rgb(d_out[r]),
+                &mut ds[range.clone()],
+                dr[range].as_flattened_mut(),
+            );
+        }
+        self.d_sigma = ds;
+        self.d_rgb = dr;
+    }
+}
+
+fn norm(d: [f32; 3]) -> f32 {
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
+/// Reusable state for rendering chunks of rays (one per thread).
+#[derive(Clone, Debug, Default)]
+pub struct Renderer {
+    rays: usize,
+    train: bool,
+    coarse: Pass,
+    fine: Pass,
+    t_imp: Vec<f32>,
+}
+
+impl Renderer {
+    /// Renders `chunk`. In training (`rngs`: one generator per ray) the coarse samples are
+    /// jittered, importance samples are random and density noise is added; otherwise all three
+    /// are deterministic. The colours are then in [`coarse`](Self::coarse) and
+    /// [`fine`](Self::fine).
+    pub fn forward(&mut self, model: &Model, params: &[f32], chunk: &RayChunk, mut rngs: Option<&mut [Rng]>) {
+        let rays = chunk.origins.len();
+        let cfg = &model.config;
+        let (nc, nf) = (cfg.n_coarse, model.samples_fine());
+        self.rays = rays;
+        self.train = rngs.is_some();
+        self.coarse.resize(rays, nc);
+        self.fine.resize(rays, nf);
+        self.t_imp.resize(cfg.n_fine, 0.0);
+        let noise_std = cfg.density_noise as f32;
+        // Coarse pass: stratified t in [0, 1] (NDC), density noise.
+        for r in 0..rays {
+            let rng = rngs.as_deref_mut().map(|g| &mut g[r]);
+            let t = &mut self.coarse.t[r * nc..(r + 1) * nc];
+            match rng {
+                Some(rng) => {
+                    sampling::stratified(0.0, 1.0, nc, Some(&mut *rng), t);
+                    for n in &mut self.coarse.noise[r * nc..(r + 1) * nc] {
+                        *n = noise_std * rng.normal_f32();
+                    }
+                }
+                None => sampling::stratified(0.0, 1.0, nc, None, t),
+            }
+        }
+        self.coarse.place(chunk, rays);
+        let c = &mut self.coarse;
+        model.coarse.forward(params, &mut c.ws, &c.pos, &c.dir, &mut c.sigma, &mut c.rgb);
+        c.render(chunk, rays, self.train);
+        // Fine pass: importance samples from the coarse weights, merged with the coarse t.
+        let mut det_rng = Rng::new(0, 0);
+        for r in 0..rays {
+            let (tc, wc) = (&self.coarse.t[r * nc..(r + 1) * nc], &self.coarse.weights[r * nc..(r + 1) * nc]);
+            let tf = &mut self.fine.t[r * nf..(r + 1) * nf];
+            match rngs.as_deref_mut().map(|g| &mut g[r]) {
+                Some(rng) => {
+                    sampling::importance(tc, wc, cfg.n_fine, false, rng, &mut self.t_imp);
+                    sampling::merge_sorted(tc, &self.t_imp, tf);
+                    for n in &mut self.fine.noise[r * nf..(r + 1) * nf] {
+                        *n = noise_std * rng.normal_f32();
+                    }
+                }
+                None => {
+                    sampling::importance(tc, wc, cfg.n_fine, true, &mut det_rng, &mut self.t_imp);
+                    sampling::merge_sorted(tc, &self.t_imp, tf);
+                }
+            }
+        }
+        self.fine.place(chunk, rays);
+        let f = &mut self.fine;
+        model.fine_field().forward(params, &mut f.ws, &f.pos, &f.dir, &mut f.sigma, &mut f.rgb);
+        f.render(chunk, rays, self.train);
+    }
+
+    /// Coarse colours of the last forward (linear RGB, one per ray).
+    pub fn coarse(&self) -> &[[f32; 3]] {
+        &self.coarse.out[..self.rays]
+    }
+
+    /// Fine colours of the last forward.
+    pub fn fine(&self) -> &[[f32; 3]] {
+        &self.fine.out[..self.rays]
+    }
+
+    /// Backward of the last [`forward`](Self::forward): accumulates the parameter gradients of
+    /// a loss with dL/dC `d_coarse` and `d_fine` (one per ray) into `grads`.
+    pub fn backward(
+        &mut self,
+        model: &Model,
+        params: &[f32],
+        grads: &mut [f32],
+        chunk: &RayChunk,
+        d_coarse: &[[f32; 3]],
+        d_fine: &[[f32; 3]],
+    ) {
+        let rays = self.rays;
+        let f = &mut self.fine;
+        f.render_backward(chunk, rays, d_fine, self.train);
+        model.fine_field().backward(params, grads, &mut f.ws, &f.pos, &f.d_sigma, &f.d_rgb, None, None);
+        let c = &mut self.coarse;
+        c.render_backward(chunk, rays, d_coarse, self.train);
+        model.coarse.backward(params, grads, &mut c.ws, &c.pos, &c.d_sigma, &c.d_rgb, None, None);
+    }
+}

@@ -1,0 +1,198 @@
+//! The registry of training presets: every method is a named function of the scale, built from
+//! component configs and derived from another preset where it differs in a few fields. The CLI,
+//! the benchmark and the smoke tests all read [`PRESETS`].
+//!
+//! Scales:
+//! - `paper`: the reference implementation's settings (`../shared/reference/method.md`):
+//!   coarse VM 256^3 [64,16,16] -> 32, fine VM 512^3 [64,16,16] -> 32, MLP widths 64 / 256,
+//!   64 + 64 samples, 1024 rays, 30 k iterations, lr 5e-3 decayed 10x per 10 k steps.
+//! - `cpu`: sized for 2 cores and about 20 minutes (see [`cpu_model`] for the choices and why).
+
+use crate::config::{ImageSource, TrainConfig};
+use crate::engine::adam::AdamConfig;
+use crate::engine::field::FieldShape;
+use crate::engine::model::{ModelConfig, VolumeShape};
+
+/// How big a run is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Scale {
+    /// The reference hyper-parameters.
+    Paper,
+    /// Defaults chosen for a 2-core CPU.
+    Cpu,
+}
+
+impl Scale {
+    /// Parses `paper` or `cpu`.
+    pub fn parse(s: &str) -> Option<Scale> {
+        match s {
+            "paper" => Some(Scale::Paper),
+            "cpu" => Some(Scale::Cpu),
+            _ => None,
+        }
+    }
+}
+
+/// A named method.
+#[derive(Clone, Copy, Debug)]
+pub struct Preset {
+    /// The name used on the command line and in tables.
+    pub name: &'static str,
+    /// One line on what it is.
+    pub description: &'static str,
+    /// Its configuration at a scale.
+    pub build: fn(Scale) -> TrainConfig,
+}
+
+/// Every preset, in table order.
+pub const PRESETS: &[Preset] = &[
+    Preset {
+        name: "nerf",
+        description: "radiance field on the blurry images, no blur model (lower bound)",
+        build: nerf,
+    },
+    Preset {
+        name: "nerf-sharp",
+        description: "radiance field on the sharp renders of the training views (upper bound)",
+        build: nerf_sharp,
+    },
+];
+
+/// The preset called `name`.
+pub fn preset(name: &str) -> Option<&'static Preset> {
+    PRESETS.iter().find(|p| p.name == name)
+}
+
+/// The names of every preset (for error messages).
+pub fn names() -> Vec<&'static str> {
+    PRESETS.iter().map(|p| p.name).collect()
+}
+
+/// The reference model.
+pub fn paper_model() -> ModelConfig {
+    ModelConfig {
+        coarse_volume: VolumeShape { res: 256, comps: [64, 16, 16], features: 32 },
+        fine_volume: Some(VolumeShape { res: 512, comps: [64, 16, 16], features: 32 }),
+        coarse: FieldShape {
+            pe_pos: 10,
+            pe_dir: 4,
+            density_hidden: vec![64],
+            features: 15,
+            colour_hidden: vec![64, 64],
+            bias: false,
+        },
+        fine: Some(FieldShape {
+            pe_pos: 10,
+            pe_dir: 4,
+            density_hidden: vec![256],
+            features: 128,
+            colour_hidden: vec![256, 256],
+            bias: false,
+        }),
+        n_coarse: 64,
+        n_fine: 64,
+        density_noise: 1.0,
+        tv_plane: 1e-2 * 5.0,
+        tv_line: 1e-3 * 5.0,
+    }
+}
+
+/// The 2-core model. Choices, and why:
+/// - one field level (the coarse shape) evaluating both passes: the fine level of the reference
+///   (256-wide MLPs, 512^3 volume) costs ~10x the coarse per sample; one shared field keeps the
+///   hierarchical sampling at a fraction of the cost;
+/// - a 160^3 volume with [48,12,12] components: a 600x400 scene's detail at NDC resolution
+///   needs ~1 voxel per 2-4 pixels, and the smaller grid converges in fewer steps;
+/// - 48 + 48 samples per ray: forward-facing scenes in NDC concentrate the content in a thin
+///   depth range that importance sampling finds;
+/// - everything else as the reference.
+pub fn cpu_model() -> ModelConfig {
+    let paper = paper_model();
+    ModelConfig {
+        coarse_volume: VolumeShape { res: 160, comps: [48, 12, 12], features: 32 },
+        fine_volume: None,
+        fine: None,
+        n_coarse: 48,
+        n_fine: 48,
+        ..paper
+    }
+}
+
+/// The reference optimiser: lr 5e-3 for everything, decayed 10x per 10 k steps.
+pub fn paper_adam() -> AdamConfig {
+    AdamConfig {
+        lr_volume: 5e-3,
+        lr_network: 5e-3,
+        lr_embedding: 5e-3,
+        beta1: 0.9,
+        beta2: 0.999,
+        eps: 1e-8,
+        decay: 0.1,
+        decay_steps: 10_000.0,
+    }
+}
+
+/// Plain radiance field on the blurry images.
+pub fn nerf(scale: Scale) -> TrainConfig {
+    match scale {
+        Scale::Paper => TrainConfig {
+            model: paper_model(),
+            adam: paper_adam(),
+            iterations: 30_000,
+            batch_rays: 1024,
+            chunk_rays: 4,
+            images: ImageSource::Blurry,
+            response_gamma: 2.2,
+            seed: 0,
+            checkpoint_every: 1000,
+            eval_every: 5000,
+            threads: 0,
+        },
+        Scale::Cpu => TrainConfig {
+            model: cpu_model(),
+            // Fewer iterations: the decay is compressed so the rate still falls 10x per third of
+            // the run, as in the reference.
+            adam: AdamConfig { lr_volume: 2e-2, decay_steps: 2000.0, ..paper_adam() },
+            iterations: 6000,
+            batch_rays: 1024,
+            chunk_rays: 4,
+            eval_every: 1000,
+            ..nerf(Scale::Paper)
+        },
+    }
+}
+
+/// Plain radiance field on the sharp renders of the training views.
+pub fn nerf_sharp(scale: Scale) -> TrainConfig {
+    TrainConfig { images: ImageSource::Sharp, ..nerf(scale) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_preset_validates_at_both_scales_and_names_are_unique() {
+        let mut seen = std::collections::HashSet::new();
+        for p in PRESETS {
+            assert!(seen.insert(p.name), "duplicate preset {}", p.name);
+            for s in [Scale::Paper, Scale::Cpu] {
+                (p.build)(s).validate().unwrap_or_else(|e| panic!("{} {s:?}: {e}", p.name));
+            }
+        }
+    }
+
+    #[test]
+    fn paper_model_has_the_reference_sizes() {
+        let m = crate::engine::model::Model::new(&paper_model());
+        assert_eq!(m.coarse.density[0].n_in, 32 + 63);
+        assert_eq!(m.coarse.colour[0].n_in, 15 + 27);
+        let fine = m.fine.as_ref().unwrap();
+        assert_eq!(fine.density[0].n_in, 127);
+        assert_eq!(fine.colour[0].n_in, 128 + 27);
+        // Voxel counts of the reference: 256^3 = 16.7 M and 512^3 = 134 M.
+        assert_eq!(m.volumes[0].res.iter().product::<usize>(), 16_777_216);
+        assert_eq!(m.volumes[1].res.iter().product::<usize>(), 134_217_728);
+    }
+}

@@ -1,15 +1,21 @@
-//! Trainer: radiance fields, blur models and losses (to come; see issue tracker).
+//! Trainer: radiance fields, blur models and losses .
 //!
 //! What lives where:
 //! - [`data`]: the dataset loader (the Ev-DeblurBlender layout): images, poses in the recentred,
 //!   scaled world, the dense trajectory with pose interpolation, events with successors, rays.
 //! - [`engine`]: the CPU radiance-field engine (kernels, gradients, optimiser).
 //! - [`config`]: a run's settings; [`presets`]: the registry of named methods.
+//! - [`train`]: the training loop; [`checkpoint`]: saved states; [`eval`]: test-view scores.
 //! - [`metrics`]: PSNR and SSIM of images as scikit-image computes them ([`metrics::ImageRef`]).
 #![warn(missing_docs)]
 
+pub mod bench;
+pub mod checkpoint;
 pub mod config;
 pub mod data;
 pub mod engine;
+pub mod error;
+pub mod eval;
 pub mod metrics;
 pub mod presets;
+pub mod train;

@@ -13,6 +13,9 @@
 //!   both passes, forward and backward.
 //! - [`adam`]: the optimiser and learning-rate schedule.
 
+// Kernels walk several parallel per-sample arrays with one index; that reads as the maths does.
+#![allow(clippy::needless_range_loop)]
+
 pub mod adam;
 pub mod encoding;
 pub mod field;

@@ -15,17 +15,19 @@ pub struct GradBuffers {
 }
 
 impl GradBuffers {
-    /// Runs `work(range, grads, thread)` on `threads` contiguous ranges of `0..n_items` in
-    /// parallel, each with a zeroed buffer of `len` values, and returns the per-range results
-    /// in order. The summed gradient is then available through [`GradBuffers::sum_into`].
-    pub fn run<T: Send>(
+    /// Runs `work(range, grads, state)` on `states.len()` contiguous ranges of `0..n_items` in
+    /// parallel, each with a zeroed buffer of `len` values and its own state (e.g. a renderer),
+    /// and returns the per-range results in order. The summed gradient is then available
+    /// through [`GradBuffers::sum_into`].
+    pub fn run<S: Send, T: Send>(
         &mut self,
         len: usize,
         n_items: usize,
-        threads: usize,
-        work: impl Fn(Range<usize>, &mut [f32], usize) -> T + Sync,
+        states: &mut [S],
+        work: impl Fn(Range<usize>, &mut [f32], &mut S) -> T + Sync,
     ) -> Vec<T> {
-        let threads = threads.max(1);
+        let threads = states.len();
+        assert!(threads > 0, "GradBuffers::run needs at least one state");
         self.bufs.resize_with(threads, Vec::new);
         self.bufs.truncate(threads);
         self.bufs.par_iter_mut().for_each(|b| {
@@ -34,10 +36,11 @@ impl GradBuffers {
         });
         self.bufs
             .par_iter_mut()
+            .zip(states.par_iter_mut())
             .enumerate()
-            .map(|(t, buf)| {
+            .map(|(t, (buf, state))| {
                 let range = (n_items * t / threads)..(n_items * (t + 1) / threads);
-                work(range, buf, t)
+                work(range, buf, state)
             })
             .collect()
     }
@@ -65,7 +68,7 @@ mod tests {
     fn sums_every_item_once_and_is_repeatable() {
         let mut g = GradBuffers::default();
         let run = |g: &mut GradBuffers, threads| {
-            g.run(4, 1000, threads, |r, buf, _| {
+            g.run(4, 1000, &mut vec![(); threads], |r, buf, _| {
                 for i in r {
                     buf[i % 4] += 1.0 / (1.0 + i as f32);
                 }

@@ -123,6 +123,7 @@ fn norm(d: [f32; 3]) -> f32 {
 pub struct Renderer {
     rays: usize,
     train: bool,
+    fine_pass: bool,
     coarse: Pass,
     fine: Pass,
     t_imp: Vec<f32>,
@@ -139,6 +140,7 @@ impl Renderer {
         let (nc, nf) = (cfg.n_coarse, model.samples_fine());
         self.rays = rays;
         self.train = rngs.is_some();
+        self.fine_pass = cfg.n_fine > 0;
         self.coarse.resize(rays, nc);
         self.fine.resize(rays, nf);
         self.t_imp.resize(cfg.n_fine, 0.0);
@@ -161,6 +163,10 @@ impl Renderer {
         let c = &mut self.coarse;
         model.coarse.forward(params, &mut c.ws, &c.pos, &c.dir, &mut c.sigma, &mut c.rgb);
         c.render(chunk, rays, self.train);
+        if cfg.n_fine == 0 {
+            // One pass only: the "fine" colour is the coarse one.
+            return;
+        }
         // Fine pass: importance samples from the coarse weights, merged with the coarse t.
         let mut det_rng = Rng::new(0, 0);
         for r in 0..rays {
@@ -191,9 +197,14 @@ impl Renderer {
         &self.coarse.out[..self.rays]
     }
 
-    /// Fine colours of the last forward.
+    /// Fine colours of the last forward (the coarse ones when the model has no importance
+    /// samples).
     pub fn fine(&self) -> &[[f32; 3]] {
-        &self.fine.out[..self.rays]
+        if self.fine_pass {
+            &self.fine.out[..self.rays]
+        } else {
+            &self.coarse.out[..self.rays]
+        }
     }
 
     /// Backward of the last [`forward`](Self::forward): accumulates the parameter gradients of
@@ -208,6 +219,15 @@ impl Renderer {
         d_fine: &[[f32; 3]],
     ) {
         let rays = self.rays;
+        if !self.fine_pass {
+            // One pass: both losses act on the coarse colour.
+            let d: Vec<[f32; 3]> =
+                d_coarse.iter().zip(d_fine).map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]).collect();
+            let c = &mut self.coarse;
+            c.render_backward(chunk, rays, &d, self.train);
+            model.coarse.backward(params, grads, &mut c.ws, &c.pos, &c.d_sigma, &c.d_rgb, None, None);
+            return;
+        }
         let f = &mut self.fine;
         f.render_backward(chunk, rays, d_fine, self.train);
         model.fine_field().backward(params, grads, &mut f.ws, &f.pos, &f.d_sigma, &f.d_rgb, None, None);

@@ -1,0 +1,245 @@
+//! `evtrain`: train radiance fields on evblur datasets, evaluate them, benchmark the engine.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+
+use trainer::checkpoint::Checkpoint;
+use trainer::config::TrainConfig;
+use trainer::data::dataset::{Dataset, LoadOptions};
+use trainer::engine::model::Model;
+use trainer::presets::{self, Scale};
+use trainer::train::{RunPaths, TrainOptions, Trainer};
+
+#[derive(Parser)]
+#[command(name = "evtrain", version, about = "Train and evaluate deblurring radiance fields on evblur datasets")]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Train a preset on a dataset into a run folder (resumable).
+    Train {
+        /// Dataset folder (written by `evsim dataset`, or a public Ev-DeblurBlender scene).
+        #[arg(long)]
+        data: PathBuf,
+        /// Method preset (`evtrain presets` lists them).
+        #[arg(long)]
+        preset: String,
+        /// `cpu` (sized for 2 cores) or `paper` (the reference hyper-parameters).
+        #[arg(long, default_value = "cpu")]
+        scale: String,
+        /// Run folder (config, checkpoints, log, evaluation).
+        #[arg(long)]
+        out: PathBuf,
+        /// Continue the run in --out from its checkpoint.
+        #[arg(long)]
+        resume: bool,
+        /// Override the preset's iteration count.
+        #[arg(long)]
+        iterations: Option<u64>,
+        /// Override the seed.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads (0: all cores); results are reproducible for a given count.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Render the test views of a run, score them (PSNR, SSIM) and write metrics.json.
+    Eval {
+        /// Run folder.
+        run: PathBuf,
+        /// Worker threads (0: all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+    },
+    /// List the presets.
+    Presets,
+    /// Time optimisation steps: the reference step and the cpu-scale step.
+    Bench {
+        /// Timed steps per shape (after one warm-up).
+        #[arg(long, default_value_t = 7)]
+        reps: usize,
+    },
+}
+
+/// What `config.toml` of a run holds.
+#[derive(serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RunRecord {
+    preset: String,
+    scale: Scale,
+    data: PathBuf,
+    config: TrainConfig,
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.cmd {
+        Cmd::Train { data, preset, scale, out, resume, iterations, seed, threads, quiet } => {
+            train(&data, &preset, &scale, &out, resume, iterations, seed, threads, quiet)
+        }
+        Cmd::Eval { run, threads } => eval(&run, threads),
+        Cmd::Presets => {
+            for p in presets::PRESETS {
+                println!("{:<14} {}", p.name, p.description);
+            }
+            Ok(())
+        }
+        Cmd::Bench { reps } => bench(reps),
+    }
+}
+
+fn load(data: &Path, cfg: &TrainConfig) -> Result<Dataset> {
+    let opts = LoadOptions { read_events: false, read_sharp: true, ..LoadOptions::default() };
+    let _ = cfg;
+    Ok(Dataset::load(data, &opts)?)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn train(
+    data: &Path,
+    preset: &str,
+    scale: &str,
+    out: &Path,
+    resume: bool,
+    iterations: Option<u64>,
+    seed: Option<u64>,
+    threads: Option<usize>,
+    quiet: bool,
+) -> Result<()> {
+    let run = RunPaths::new(out);
+    let (record, checkpoint) = if resume {
+        let text = std::fs::read_to_string(run.config())
+            .with_context(|| format!("{}: no run to resume; train without --resume first", run.config().display()))?;
+        let record: RunRecord = toml::from_str(&text)
+            .with_context(|| format!("{}: not a run config; delete the run folder", run.config().display()))?;
+        let model = Model::new(&record.config.model);
+        let ck =
+            if run.checkpoint().exists() { Some(Checkpoint::load(&model.layout, &run.checkpoint())?) } else { None };
+        (record, ck)
+    } else {
+        let Some(p) = presets::preset(preset) else {
+            bail!("--preset {preset}: unknown; choose one of {}", presets::names().join(", "));
+        };
+        let Some(scale) = Scale::parse(scale) else { bail!("--scale {scale}: unknown; choose cpu or paper") };
+        if run.config().exists() {
+            bail!("{}: a run is already there; pass --resume to continue it or choose another --out", out.display());
+        }
+        let mut config = (p.build)(scale);
+        if let Some(n) = iterations {
+            config.iterations = n;
+        }
+        if let Some(s) = seed {
+            config.seed = s;
+        }
+        if let Some(t) = threads {
+            config.threads = t;
+        }
+        config.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
+        let data = std::fs::canonicalize(data).with_context(|| format!("--data {}: no such folder", data.display()))?;
+        let record = RunRecord { preset: preset.to_string(), scale, data, config };
+        std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the run folder", out.display()))?;
+        simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
+        (record, None)
+    };
+    let dataset = load(&record.data, &record.config)?;
+    let mut trainer = Trainer::new(&dataset, record.config.clone(), checkpoint)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || {
+            if stop.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!("\nstopping after this step (checkpoint follows); Ctrl-C again to quit now");
+        })
+        .context("cannot install the Ctrl-C handler")?;
+    }
+    let start = trainer.step;
+    let rows = trainer.train(&run, &TrainOptions { progress: !quiet, stop: Some(&stop), max_steps: None })?;
+    let last = rows.last();
+    println!(
+        "{} {} on {}: steps {}..{} in {:.1} s (total {:.1} s), batch PSNR {:.2} dB{}",
+        record.preset,
+        match record.scale {
+            Scale::Cpu => "cpu",
+            Scale::Paper => "paper",
+        },
+        record.data.display(),
+        start,
+        trainer.step,
+        rows.last().map_or(trainer.seconds, |r| r.seconds) - rows.first().map_or(trainer.seconds, |r| r.seconds),
+        trainer.seconds,
+        last.map_or(f64::NAN, |r| r.psnr_batch),
+        last.and_then(|r| r.psnr_test).map_or(String::new(), |p| format!(", test PSNR {p:.2} dB")),
+    );
+    if stop.load(Ordering::SeqCst) {
+        println!("stopped at step {}; continue with --resume", trainer.step);
+    }
+    Ok(())
+}
+
+fn eval(dir: &Path, threads: usize) -> Result<()> {
+    let run = RunPaths::new(dir);
+    let text = std::fs::read_to_string(run.config())
+        .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
+    let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
+    let model = Model::new(&record.config.model);
+    let ck = Checkpoint::load(&model.layout, &run.checkpoint())?;
+    let dataset = load(&record.data, &record.config)?;
+    let scores = trainer::eval::evaluate(&dataset, &model, &ck.params, &record.config, threads, Some(&run.eval()))?;
+    let json = serde_json::json!({
+        "preset": record.preset,
+        "scale": record.scale,
+        "data": record.data,
+        "step": ck.step,
+        "train_seconds": ck.seconds,
+        "psnr": scores.mean_psnr(),
+        "ssim": scores.mean_ssim(),
+        "views": scores.views,
+    });
+    simulator::image_io::write_atomic(&run.dir.join("metrics.json"), serde_json::to_string_pretty(&json)?.as_bytes())?;
+    for v in &scores.views {
+        println!("{:<10} PSNR {:6.2} dB  SSIM {:.4}", v.name, v.psnr, v.ssim);
+    }
+    println!(
+        "mean       PSNR {:6.2} dB  SSIM {:.4}  ({} test views, step {})",
+        scores.mean_psnr(),
+        scores.mean_ssim(),
+        scores.views.len(),
+        ck.step
+    );
+    Ok(())
+}
+
+fn bench(reps: usize) -> Result<()> {
+    let threads = rayon::current_num_threads();
+    let shapes = [
+        (
+            "reference step (1024 rays x 128 samples, VM 256^3 [64,16,16], 64-wide MLP)",
+            trainer::bench::reference_config(),
+        ),
+        ("cpu-scale step (nerf --scale cpu)", presets::nerf(Scale::Cpu)),
+    ];
+    println!("{threads} threads, {reps} timed steps each after one warm-up");
+    for (name, cfg) in shapes {
+        let t = trainer::bench::time_steps(name, &cfg, reps, threads);
+        println!(
+            "{name}: median {:.1} ms/step, {:.1} GFLOP/s  (min {:.1}, max {:.1} ms)",
+            t.median_ms,
+            t.gflops,
+            t.times_ms.iter().cloned().fold(f64::INFINITY, f64::min),
+            t.times_ms.iter().cloned().fold(0.0, f64::max)
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,94 @@
+//! Checkpoints: parameters, Adam moments, the step and the training time, in one binary file
+//! written atomically (temporary file + rename), so an interrupted write leaves the previous
+//! checkpoint intact. Layout (little-endian): magic `EVBLURCK`, format version u32, layout
+//! fingerprint u64, step u64, training seconds f64, parameter count u64, then params, m and v
+//! as f32.
+
+use std::path::Path;
+
+use crate::engine::adam::Adam;
+use crate::engine::params::Layout;
+use crate::error::TrainError;
+
+const MAGIC: &[u8; 8] = b"EVBLURCK";
+const VERSION: u32 = 1;
+
+/// A training state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Checkpoint {
+    /// Iterations done.
+    pub step: u64,
+    /// Training wall time so far (s), excluding evaluation.
+    pub seconds: f64,
+    /// Parameters.
+    pub params: Vec<f32>,
+    /// Optimiser state.
+    pub adam: Adam,
+}
+
+/// A hash of tensor names and sizes: a checkpoint only loads into the layout it was saved from.
+pub fn fingerprint(layout: &Layout) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for t in &layout.tensors {
+        for b in t.name.bytes().chain((t.range.len() as u64).to_le_bytes()) {
+            h = (h ^ b as u64).wrapping_mul(0x100_0000_01b3);
+        }
+    }
+    h
+}
+
+impl Checkpoint {
+    /// Writes the checkpoint to `path` atomically.
+    pub fn save(&self, layout: &Layout, path: &Path) -> Result<(), TrainError> {
+        let n = self.params.len();
+        let mut bytes = Vec::with_capacity(44 + 12 * n);
+        bytes.extend_from_slice(MAGIC);
+        bytes.extend_from_slice(&VERSION.to_le_bytes());
+        bytes.extend_from_slice(&fingerprint(layout).to_le_bytes());
+        bytes.extend_from_slice(&self.step.to_le_bytes());
+        bytes.extend_from_slice(&self.seconds.to_le_bytes());
+        bytes.extend_from_slice(&(n as u64).to_le_bytes());
+        for v in [&self.params, &self.adam.m, &self.adam.v] {
+            for x in v.iter() {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        simulator::image_io::write_atomic(path, &bytes).map_err(|e| {
+            TrainError::run(
+                path,
+                format!("cannot write the checkpoint: {e:#}"),
+                "free disk space or choose another --out",
+            )
+        })
+    }
+
+    /// Reads a checkpoint saved for `layout`.
+    pub fn load(layout: &Layout, path: &Path) -> Result<Checkpoint, TrainError> {
+        let bytes = std::fs::read(path).map_err(|e| TrainError::io(path, e, "train first (evtrain train)"))?;
+        let bad = |what: &str| TrainError::run(path, what.to_string(), "delete the run folder and train again");
+        if bytes.len() < 44 || &bytes[..8] != MAGIC {
+            return Err(bad("not an evblur checkpoint (bad header)"));
+        }
+        let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
+        let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
+        if version != VERSION {
+            return Err(bad(&format!("checkpoint format {version}, this build reads {VERSION}")));
+        }
+        if u64_at(12) != fingerprint(layout) {
+            return Err(bad("saved for a different model shape than config.toml describes"));
+        }
+        let step = u64_at(20);
+        let seconds = f64::from_le_bytes(bytes[28..36].try_into().expect("8 bytes"));
+        let n = u64_at(36) as usize;
+        if n != layout.len() || bytes.len() != 44 + 12 * n {
+            return Err(bad(&format!("truncated: {} bytes for {} parameters", bytes.len(), layout.len())));
+        }
+        let read = |k: usize| -> Vec<f32> {
+            bytes[44 + 4 * n * k..44 + 4 * n * (k + 1)]
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+                .collect()
+        };
+        Ok(Checkpoint { step, seconds, params: read(0), adam: Adam { m: read(1), v: read(2), t: step } })
+    }
+}

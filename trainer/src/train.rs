@@ -1,0 +1,403 @@
+//! The training loop: batches of random pixels of the training views, both sampling passes
+//! rendered and differentiated in parallel chunks, the image loss through the camera response,
+//! the TV regulariser, one Adam step; checkpoints, a log and periodic test-view evaluation.
+//!
+//! Image loss (both passes): L = mean over rays and channels of (g(C) - y)^2, with
+//! g(c) = max(c, 1e-4)^(1 / gamma) the camera response applied to the linear colour C and y the
+//! pixel's value in [0, 1]. Reproducibility: the batch, the jitter and the density noise of
+//! step s come from generators seeded by (seed, s) and the ray index, and the gradient is summed
+//! in a fixed order for a given thread count, so a resumed run repeats the uninterrupted one
+//! bit for bit.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use glam::DVec3;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::checkpoint::Checkpoint;
+use crate::config::{ImageSource, TrainConfig};
+use crate::data::dataset::Dataset;
+use crate::data::rays::Ray;
+use crate::engine::adam::Adam;
+use crate::engine::model::Model;
+use crate::engine::parallel::GradBuffers;
+use crate::engine::renderer::{RayChunk, Renderer};
+use crate::engine::rng::Rng;
+use crate::error::TrainError;
+
+/// Near plane of the NDC warp (the reference's 1, in the loader's scaled world).
+pub const NDC_NEAR: f64 = 1.0;
+/// Lower clamp of the linear colour before the camera response (keeps g' finite).
+pub const RESPONSE_FLOOR: f32 = 1e-4;
+
+/// g(c) and g'(c) for the response exponent `inv_gamma` = 1 / gamma.
+#[inline]
+pub fn response(c: f32, inv_gamma: f32) -> (f32, f32) {
+    if c <= RESPONSE_FLOOR {
+        (RESPONSE_FLOOR.powf(inv_gamma), 0.0)
+    } else {
+        let y = c.powf(inv_gamma);
+        (y, inv_gamma * y / c)
+    }
+}
+
+/// A camera ray prepared for the renderer: NDC origin and direction, world view direction.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PreparedRay {
+    /// NDC origin.
+    pub origin: [f32; 3],
+    /// NDC direction.
+    pub dir: [f32; 3],
+    /// Unit world direction.
+    pub viewdir: [f32; 3],
+}
+
+/// The NDC form of a world ray (module [`crate::data::rays`]).
+pub fn prepare(data: &Dataset, ray: &Ray) -> PreparedRay {
+    let ndc = data.intrinsics.ndc(ray, NDC_NEAR);
+    let f = |v: DVec3| [v.x as f32, v.y as f32, v.z as f32];
+    PreparedRay { origin: f(ndc.origin), dir: f(ndc.direction), viewdir: f(ray.direction.normalize()) }
+}
+
+/// Origins, directions and view directions, as [`unzip`] returns them.
+pub type RayColumns = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[f32; 3]>);
+
+/// Splits prepared rays into the renderer's three slices.
+pub fn unzip(rays: &[PreparedRay]) -> RayColumns {
+    (
+        rays.iter().map(|r| r.origin).collect(),
+        rays.iter().map(|r| r.dir).collect(),
+        rays.iter().map(|r| r.viewdir).collect(),
+    )
+}
+
+/// Files of a run folder.
+#[derive(Clone, Debug)]
+pub struct RunPaths {
+    /// The folder.
+    pub dir: PathBuf,
+}
+
+impl RunPaths {
+    /// The run in `dir`.
+    pub fn new(dir: &Path) -> RunPaths {
+        RunPaths { dir: dir.to_path_buf() }
+    }
+    /// The resolved configuration.
+    pub fn config(&self) -> PathBuf {
+        self.dir.join("config.toml")
+    }
+    /// The dataset the run trains on (one line, the path).
+    pub fn data(&self) -> PathBuf {
+        self.dir.join("dataset.txt")
+    }
+    /// The latest checkpoint.
+    pub fn checkpoint(&self) -> PathBuf {
+        self.dir.join("checkpoint.bin")
+    }
+    /// The training log (CSV).
+    pub fn log(&self) -> PathBuf {
+        self.dir.join("log.csv")
+    }
+    /// Evaluation outputs.
+    pub fn eval(&self) -> PathBuf {
+        self.dir.join("eval")
+    }
+}
+
+/// One line of the log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogRow {
+    /// Iterations done.
+    pub step: u64,
+    /// Training time (s).
+    pub seconds: f64,
+    /// Mean image loss of the step (both passes).
+    pub loss: f64,
+    /// PSNR of the fine pass on the step's batch (display space).
+    pub psnr_batch: f64,
+    /// Mean test-view PSNR, when evaluated at this step.
+    pub psnr_test: Option<f64>,
+}
+
+/// Options that do not change the result.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TrainOptions<'a> {
+    /// Show a progress bar.
+    pub progress: bool,
+    /// Set (e.g. by Ctrl-C) to stop after the current step with a checkpoint.
+    pub stop: Option<&'a AtomicBool>,
+    /// Stop after this many iterations even if the config asks for more (tests, benchmarks).
+    pub max_steps: Option<u64>,
+}
+
+/// The state of a training run.
+pub struct Trainer<'a> {
+    data: &'a Dataset,
+    /// The configuration.
+    pub cfg: TrainConfig,
+    /// The model.
+    pub model: Model,
+    /// Parameters.
+    pub params: Vec<f32>,
+    /// Optimiser state.
+    pub adam: Adam,
+    /// Iterations done.
+    pub step: u64,
+    /// Training time so far (s).
+    pub seconds: f64,
+    engine: StepBuffers,
+    train_views: Vec<usize>,
+    threads: usize,
+    pool: rayon::ThreadPool,
+}
+
+/// The training images of `data` for `source`, or an error naming what is missing.
+fn check_images(data: &Dataset, source: ImageSource) -> Result<Vec<usize>, TrainError> {
+    let train = data.split.train.clone();
+    if train.is_empty() {
+        return Err(TrainError::Missing {
+            path: data.dir.clone(),
+            what: "no training views (every view is a test view)".into(),
+            fix: "write a dataset with more views (evsim dataset --views)".into(),
+        });
+    }
+    if source == ImageSource::Sharp && train.iter().any(|&v| data.views[v].sharp.is_none()) {
+        return Err(TrainError::Missing {
+            path: data.dir.join("images_sharp_1"),
+            what: "the sharp training views are missing (the preset trains on them)".into(),
+            fix: "write the dataset with evsim dataset, which adds images_sharp_1/, or choose preset nerf".into(),
+        });
+    }
+    Ok(train)
+}
+
+impl<'a> Trainer<'a> {
+    /// A fresh run (parameters from the seed) or, with `checkpoint`, a resumed one.
+    pub fn new(data: &'a Dataset, cfg: TrainConfig, checkpoint: Option<Checkpoint>) -> Result<Trainer<'a>, TrainError> {
+        cfg.validate().map_err(TrainError::Config)?;
+        let train_views = check_images(data, cfg.images)?;
+        let model = Model::new(&cfg.model);
+        let threads = if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| TrainError::Config(format!("threads = {threads}: cannot start the workers ({e})")))?;
+        let (params, adam, step, seconds) = match checkpoint {
+            Some(c) => (c.params, c.adam, c.step, c.seconds),
+            None => (model.init(cfg.seed), Adam::new(&model.layout), 0, 0.0),
+        };
+        Ok(Trainer {
+            data,
+            cfg,
+            model,
+            params,
+            adam,
+            step,
+            seconds,
+            engine: StepBuffers::new(threads),
+            train_views,
+            threads,
+            pool,
+        })
+    }
+
+    /// The checkpoint of the current state.
+    pub fn checkpoint(&self) -> Checkpoint {
+        Checkpoint { step: self.step, seconds: self.seconds, params: self.params.clone(), adam: self.adam.clone() }
+    }
+
+    /// One iteration; returns (mean image loss, batch PSNR of the fine pass).
+    pub fn step(&mut self) -> (f64, f64) {
+        let t0 = Instant::now();
+        let cfg = &self.cfg;
+        let data = self.data;
+        let (w, h) = (data.intrinsics.width as u64, data.intrinsics.height as u64);
+        // The batch: random (view, pixel) pairs of step `self.step`.
+        let mut pick = Rng::new(cfg.seed, 1 << 40 | self.step);
+        let mut rays = Vec::with_capacity(cfg.batch_rays);
+        let mut targets = Vec::with_capacity(cfg.batch_rays);
+        for _ in 0..cfg.batch_rays {
+            let v = self.train_views[pick.below(self.train_views.len() as u64) as usize];
+            let (i, j) = (pick.below(w) as u32, pick.below(h) as u32);
+            let view = &data.views[v];
+            rays.push(prepare(data, &data.intrinsics.ray(&view.pose, i, j)));
+            let img = match cfg.images {
+                ImageSource::Blurry => &view.image,
+                ImageSource::Sharp => view.sharp.as_ref().expect("checked in Trainer::new"),
+            };
+            targets.push(img.pixel(i, j));
+        }
+        let out = self.pool.install(|| {
+            image_step(&mut self.engine, &self.model, &mut self.params, &mut self.adam, cfg, self.step, &rays, &targets)
+        });
+        self.step += 1;
+        self.seconds += t0.elapsed().as_secs_f64();
+        out
+    }
+
+    /// Trains to the configured number of iterations (or until stopped), writing checkpoints
+    /// and the log into `run`; returns the log rows written by this call.
+    pub fn train(&mut self, run: &RunPaths, opts: &TrainOptions) -> Result<Vec<LogRow>, TrainError> {
+        let end = opts.max_steps.map_or(self.cfg.iterations, |m| m.min(self.cfg.iterations));
+        let bar = if opts.progress { ProgressBar::new(end) } else { ProgressBar::hidden() };
+        bar.set_style(
+            ProgressStyle::with_template("{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} (eta {eta})")
+                .expect("valid template"),
+        );
+        bar.set_position(self.step);
+        let mut rows = Vec::new();
+        let mut log = LogFile::open(run, self.step)?;
+        while self.step < end {
+            let (loss, psnr) = self.step();
+            let mut row = LogRow { step: self.step, seconds: self.seconds, loss, psnr_batch: psnr, psnr_test: None };
+            let eval_now = self.cfg.eval_every > 0 && self.step.is_multiple_of(self.cfg.eval_every);
+            if eval_now || self.step == self.cfg.iterations {
+                let scores =
+                    crate::eval::evaluate(self.data, &self.model, &self.params, &self.cfg, self.threads, None)?;
+                row.psnr_test = Some(scores.mean_psnr());
+            }
+            bar.set_message(format!("loss {loss:.4} psnr {psnr:.2}"));
+            bar.set_position(self.step);
+            log.push(&row)?;
+            rows.push(row);
+            let stop = opts.stop.is_some_and(|s| s.load(Ordering::SeqCst));
+            if self.step.is_multiple_of(self.cfg.checkpoint_every) || self.step == end || stop {
+                self.checkpoint().save(&self.model.layout, &run.checkpoint())?;
+            }
+            if stop {
+                break;
+            }
+        }
+        bar.finish_and_clear();
+        Ok(rows)
+    }
+}
+
+/// Buffers reused across steps: per-thread gradients and renderers.
+#[derive(Debug, Default)]
+pub struct StepBuffers {
+    grads: GradBuffers,
+    renderers: Vec<Renderer>,
+    sum: Vec<f32>,
+}
+
+impl StepBuffers {
+    /// Buffers for `threads` workers (the cut of every batch, hence the reproducibility unit).
+    pub fn new(threads: usize) -> StepBuffers {
+        StepBuffers {
+            grads: GradBuffers::default(),
+            renderers: vec![Renderer::default(); threads.max(1)],
+            sum: Vec::new(),
+        }
+    }
+}
+
+/// One optimisation step of the image loss on given rays and target pixels (display-referred):
+/// both passes forward and backward in parallel chunks on the current rayon pool, the TV
+/// regulariser, Adam. Returns (mean image loss of both passes, fine-pass PSNR of the batch).
+#[allow(clippy::too_many_arguments)]
+pub fn image_step(
+    bufs: &mut StepBuffers,
+    model: &Model,
+    params: &mut [f32],
+    adam: &mut Adam,
+    cfg: &TrainConfig,
+    step: u64,
+    rays: &[PreparedRay],
+    targets: &[[f32; 3]],
+) -> (f64, f64) {
+    let n = rays.len();
+    let inv_gamma = (1.0 / cfg.response_gamma) as f32;
+    let scale = 1.0 / (3.0 * n as f32);
+    let step_seed = cfg.seed ^ step.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    let chunk_rays = cfg.chunk_rays.max(1);
+    let p: &[f32] = params;
+    let sums = bufs.grads.run(model.layout.len(), n, &mut bufs.renderers, |range, g, renderer| {
+        let mut sums = (0.0f64, 0.0f64);
+        let (mut dc, mut df) = (Vec::new(), Vec::new());
+        for start in range.clone().step_by(chunk_rays) {
+            let end = (start + chunk_rays).min(range.end);
+            let (o, d, vd) = unzip(&rays[start..end]);
+            let chunk = RayChunk { origins: &o, dirs: &d, viewdirs: &vd };
+            let mut rngs: Vec<Rng> = (start..end).map(|r| Rng::new(step_seed, r as u64)).collect();
+            renderer.forward(model, p, &chunk, Some(&mut rngs));
+            dc.clear();
+            df.clear();
+            for (k, y) in targets[start..end].iter().enumerate() {
+                // Image loss through the camera response, both passes.
+                for (out, d, sum) in
+                    [(renderer.coarse()[k], &mut dc, &mut sums.0), (renderer.fine()[k], &mut df, &mut sums.1)]
+                {
+                    let mut grad = [0.0f32; 3];
+                    for c in 0..3 {
+                        let (gc, dg) = response(out[c], inv_gamma);
+                        let e = gc - y[c];
+                        *sum += (e * e) as f64;
+                        grad[c] = 2.0 * e * dg * scale;
+                    }
+                    d.push(grad);
+                }
+            }
+            renderer.backward(model, p, g, &chunk, &dc, &df);
+        }
+        sums
+    });
+    let g = &mut bufs.sum;
+    g.clear();
+    g.resize(model.layout.len(), 0.0);
+    bufs.grads.sum_into(g);
+    let (sc, sf) = sums.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    model.tv(params, g);
+    adam.step(&cfg.adam, &model.layout, params, g);
+    let mse_f = sf / (3 * n) as f64;
+    ((sc + sf) / (3 * n) as f64, -10.0 * mse_f.log10())
+}
+
+/// The CSV log, truncated to the rows up to the checkpoint when a run resumes.
+struct LogFile {
+    path: PathBuf,
+    text: String,
+}
+
+impl LogFile {
+    const HEADER: &'static str = "step,seconds,loss,psnr_batch,psnr_test\n";
+
+    fn open(run: &RunPaths, step: u64) -> Result<LogFile, TrainError> {
+        let path = run.log();
+        let mut text = String::from(Self::HEADER);
+        if let Ok(old) = std::fs::read_to_string(&path) {
+            for line in old.lines().skip(1) {
+                let s: u64 = line.split(',').next().and_then(|s| s.parse().ok()).unwrap_or(u64::MAX);
+                if s <= step {
+                    text.push_str(line);
+                    text.push('\n');
+                }
+            }
+        }
+        Ok(LogFile { path, text })
+    }
+
+    fn push(&mut self, r: &LogRow) -> Result<(), TrainError> {
+        let test = r.psnr_test.map_or(String::new(), |p| format!("{p:.4}"));
+        self.text.push_str(&format!("{},{:.3},{:.6},{:.4},{}\n", r.step, r.seconds, r.loss, r.psnr_batch, test));
+        if r.psnr_test.is_some() || r.step.is_multiple_of(50) {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    fn flush(&self) -> Result<(), TrainError> {
+        simulator::image_io::write_atomic(&self.path, self.text.as_bytes()).map_err(|e| {
+            TrainError::run(&self.path, format!("cannot write the log: {e:#}"), "check the run folder is writable")
+        })
+    }
+}
+
+impl Drop for LogFile {
+    fn drop(&mut self) {
+        let _ = self.flush();
+    }
+}

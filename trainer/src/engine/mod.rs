@@ -27,6 +27,8 @@ pub mod parallel;
 pub mod params;
 pub mod real;
 pub mod renderer;
+#[cfg(test)]
+mod renderer_tests;
 pub mod rng;
 pub mod sampling;
 pub mod vm;

@@ -10,58 +10,59 @@
 
 use super::field::FieldWorkspace;
 use super::model::Model;
+use super::real::Real;
 use super::rng::Rng;
 use super::sampling;
 use super::volume::{self, RaySamples, RenderGrad};
 
 /// The rays of a chunk (all three slices have one entry per ray).
 #[derive(Clone, Copy, Debug)]
-pub struct RayChunk<'a> {
+pub struct RayChunk<'a, R = f32> {
     /// NDC origins.
-    pub origins: &'a [[f32; 3]],
+    pub origins: &'a [[R; 3]],
     /// NDC directions (not normalised).
-    pub dirs: &'a [[f32; 3]],
+    pub dirs: &'a [[R; 3]],
     /// Unit view directions in world space.
-    pub viewdirs: &'a [[f32; 3]],
+    pub viewdirs: &'a [[R; 3]],
 }
 
 /// One pass's (coarse or fine) per-sample buffers.
 #[derive(Clone, Debug, Default)]
-struct Pass {
+struct Pass<R> {
     /// Samples per ray.
     s: usize,
-    t: Vec<f32>,
-    pos: Vec<[f32; 3]>,
-    dir: Vec<[f32; 3]>,
-    sigma: Vec<f32>,
-    rgb: Vec<[f32; 3]>,
-    noise: Vec<f32>,
-    weights: Vec<f32>,
+    t: Vec<R>,
+    pos: Vec<[R; 3]>,
+    dir: Vec<[R; 3]>,
+    sigma: Vec<R>,
+    rgb: Vec<[R; 3]>,
+    noise: Vec<R>,
+    weights: Vec<R>,
     /// Rendered colour per ray.
-    out: Vec<[f32; 3]>,
-    d_sigma: Vec<f32>,
-    d_rgb: Vec<[f32; 3]>,
-    ws: FieldWorkspace<f32>,
+    out: Vec<[R; 3]>,
+    d_sigma: Vec<R>,
+    d_rgb: Vec<[R; 3]>,
+    ws: FieldWorkspace<R>,
 }
 
-impl Pass {
+impl<R: Real> Pass<R> {
     fn resize(&mut self, rays: usize, s: usize) {
         let n = rays * s;
         self.s = s;
-        self.t.resize(n, 0.0);
-        self.pos.resize(n, [0.0; 3]);
-        self.dir.resize(n, [0.0; 3]);
-        self.sigma.resize(n, 0.0);
-        self.rgb.resize(n, [0.0; 3]);
-        self.noise.resize(n, 0.0);
-        self.weights.resize(n, 0.0);
-        self.out.resize(rays, [0.0; 3]);
-        self.d_sigma.resize(n, 0.0);
-        self.d_rgb.resize(n, [0.0; 3]);
+        self.t.resize(n, R::zero());
+        self.pos.resize(n, [R::zero(); 3]);
+        self.dir.resize(n, [R::zero(); 3]);
+        self.sigma.resize(n, R::zero());
+        self.rgb.resize(n, [R::zero(); 3]);
+        self.noise.resize(n, R::zero());
+        self.weights.resize(n, R::zero());
+        self.out.resize(rays, [R::zero(); 3]);
+        self.d_sigma.resize(n, R::zero());
+        self.d_rgb.resize(n, [R::zero(); 3]);
     }
 
     /// Positions o + t d and view directions of every sample, from `t`.
-    fn place(&mut self, chunk: &RayChunk, rays: usize) {
+    fn place(&mut self, chunk: &RayChunk<R>, rays: usize) {
         for r in 0..rays {
             let (o, d) = (chunk.origins[r], chunk.dirs[r]);
             for k in 0..self.s {
@@ -73,7 +74,7 @@ impl Pass {
         }
     }
 
-    fn samples(&self, r: usize, dir_norm: f32, train: bool) -> RaySamples<'_, f32> {
+    fn samples(&self, r: usize, dir_norm: R, train: bool) -> RaySamples<'_, R> {
         let range = r * self.s..(r + 1) * self.s;
         RaySamples {
             t: &self.t[range.clone()],
@@ -85,7 +86,7 @@ impl Pass {
     }
 
     /// Volume-renders every ray of the pass.
-    fn render(&mut self, chunk: &RayChunk, rays: usize, train: bool) {
+    fn render(&mut self, chunk: &RayChunk<R>, rays: usize, train: bool) {
         let mut weights = std::mem::take(&mut self.weights);
         for r in 0..rays {
             let out = volume::render(
@@ -98,7 +99,7 @@ impl Pass {
     }
 
     /// Backward through volume rendering: per-sample dL/dsigma_raw and dL/drgb from dL/dC.
-    fn render_backward(&mut self, chunk: &RayChunk, rays: usize, d_out: &[[f32; 3]], train: bool) {
+    fn render_backward(&mut self, chunk: &RayChunk<R>, rays: usize, d_out: &[[R; 3]], train: bool) {
         let (mut ds, mut dr) = (std::mem::take(&mut self.d_sigma), std::mem::take(&mut self.d_rgb));
         for r in 0..rays {
             let range = r * self.s..(r + 1) * self.s;
@@ -114,27 +115,27 @@ impl Pass {
     }
 }
 
-fn norm(d: [f32; 3]) -> f32 {
+fn norm<R: Real>(d: [R; 3]) -> R {
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 
 /// Reusable state for rendering chunks of rays (one per thread).
 #[derive(Clone, Debug, Default)]
-pub struct Renderer {
+pub struct Renderer<R = f32> {
     rays: usize,
     train: bool,
     fine_pass: bool,
-    coarse: Pass,
-    fine: Pass,
-    t_imp: Vec<f32>,
+    coarse: Pass<R>,
+    fine: Pass<R>,
+    t_imp: Vec<R>,
 }
 
-impl Renderer {
+impl<R: Real> Renderer<R> {
     /// Renders `chunk`. In training (`rngs`: one generator per ray) the coarse samples are
     /// jittered, importance samples are random and density noise is added; otherwise all three
     /// are deterministic. The colours are then in [`coarse`](Self::coarse) and
     /// [`fine`](Self::fine).
-    pub fn forward(&mut self, model: &Model, params: &[f32], chunk: &RayChunk, mut rngs: Option<&mut [Rng]>) {
+    pub fn forward(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>, mut rngs: Option<&mut [Rng]>) {
         let rays = chunk.origins.len();
         let cfg = &model.config;
         let (nc, nf) = (cfg.n_coarse, model.samples_fine());
@@ -143,27 +144,27 @@ impl Renderer {
         self.fine_pass = cfg.n_fine > 0;
         self.coarse.resize(rays, nc);
         self.fine.resize(rays, nf);
-        self.t_imp.resize(cfg.n_fine, 0.0);
-        let noise_std = cfg.density_noise as f32;
+        self.t_imp.resize(cfg.n_fine, R::zero());
+        let noise_std = R::of(cfg.density_noise);
         // Coarse pass: stratified t in [0, 1] (NDC), density noise.
         for r in 0..rays {
             let rng = rngs.as_deref_mut().map(|g| &mut g[r]);
             let t = &mut self.coarse.t[r * nc..(r + 1) * nc];
             match rng {
                 Some(rng) => {
-                    sampling::stratified(0.0, 1.0, nc, Some(&mut *rng), t);
+                    sampling::stratified(R::zero(), R::one(), nc, Some(&mut *rng), t);
                     for n in &mut self.coarse.noise[r * nc..(r + 1) * nc] {
-                        *n = noise_std * rng.normal_f32();
+                        *n = noise_std * R::of(rng.normal_f32() as f64);
                     }
                 }
-                None => sampling::stratified(0.0, 1.0, nc, None, t),
+                None => sampling::stratified(R::zero(), R::one(), nc, None, t),
             }
         }
         self.coarse.place(chunk, rays);
         let c = &mut self.coarse;
         model.coarse.forward(params, &mut c.ws, &c.pos, &c.dir, &mut c.sigma, &mut c.rgb);
         c.render(chunk, rays, self.train);
-        if cfg.n_fine == 0 {
+        if !self.fine_pass {
             // One pass only: the "fine" colour is the coarse one.
             return;
         }
@@ -177,7 +178,7 @@ impl Renderer {
                     sampling::importance(tc, wc, cfg.n_fine, false, rng, &mut self.t_imp);
                     sampling::merge_sorted(tc, &self.t_imp, tf);
                     for n in &mut self.fine.noise[r * nf..(r + 1) * nf] {
-                        *n = noise_std * rng.normal_f32();
+                        *n = noise_std * R::of(rng.normal_f32() as f64);
                     }
                 }
                 None => {
@@ -192,14 +193,28 @@ impl Renderer {
         f.render(chunk, rays, self.train);
     }
 
+    /// Re-runs the last forward with other `params` but the same sample depths and noise
+    /// (sampling is not differentiated; the finite-difference checks hold it fixed).
+    pub fn replay(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>) {
+        let rays = self.rays;
+        let c = &mut self.coarse;
+        model.coarse.forward(params, &mut c.ws, &c.pos, &c.dir, &mut c.sigma, &mut c.rgb);
+        c.render(chunk, rays, self.train);
+        if self.fine_pass {
+            let f = &mut self.fine;
+            model.fine_field().forward(params, &mut f.ws, &f.pos, &f.dir, &mut f.sigma, &mut f.rgb);
+            f.render(chunk, rays, self.train);
+        }
+    }
+
     /// Coarse colours of the last forward (linear RGB, one per ray).
-    pub fn coarse(&self) -> &[[f32; 3]] {
+    pub fn coarse(&self) -> &[[R; 3]] {
         &self.coarse.out[..self.rays]
     }
 
     /// Fine colours of the last forward (the coarse ones when the model has no importance
     /// samples).
-    pub fn fine(&self) -> &[[f32; 3]] {
+    pub fn fine(&self) -> &[[R; 3]] {
         if self.fine_pass {
             &self.fine.out[..self.rays]
         } else {
@@ -212,16 +227,16 @@ impl Renderer {
     pub fn backward(
         &mut self,
         model: &Model,
-        params: &[f32],
-        grads: &mut [f32],
-        chunk: &RayChunk,
-        d_coarse: &[[f32; 3]],
-        d_fine: &[[f32; 3]],
+        params: &[R],
+        grads: &mut [R],
+        chunk: &RayChunk<R>,
+        d_coarse: &[[R; 3]],
+        d_fine: &[[R; 3]],
     ) {
         let rays = self.rays;
         if !self.fine_pass {
             // One pass: both losses act on the coarse colour.
-            let d: Vec<[f32; 3]> =
+            let d: Vec<[R; 3]> =
                 d_coarse.iter().zip(d_fine).map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]).collect();
             let c = &mut self.coarse;
             c.render_backward(chunk, rays, &d, self.train);

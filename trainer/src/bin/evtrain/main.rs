@@ -229,6 +229,7 @@ fn bench(reps: usize) -> Result<()> {
             trainer::bench::reference_config(),
         ),
         ("cpu-scale step (nerf --scale cpu)", presets::nerf(Scale::Cpu)),
+        ("paper-scale step (nerf --scale paper: 64 + 128 samples, fine VM 512^3, 256-wide MLP)", presets::nerf(Scale::Paper)),
     ];
     println!("{threads} threads, {reps} timed steps each after one warm-up");
     for (name, cfg) in shapes {
@@ -241,5 +242,18 @@ fn bench(reps: usize) -> Result<()> {
             t.times_ms.iter().cloned().fold(0.0, f64::max)
         );
     }
+    let paper = Model::new(&presets::paper_model());
+    println!(
+        "paper model: {:.1} M parameters; peak memory of this process {:.2} GB (parameters, Adam moments, gradients)",
+        paper.layout.len() as f64 / 1e6,
+        peak_rss_bytes().unwrap_or(0) as f64 / 1e9
+    );
     Ok(())
+}
+
+/// Peak resident memory of this process (Linux `VmHWM`).
+fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
 }

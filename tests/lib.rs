@@ -4,8 +4,9 @@
 //! (the dataset schema check against h5py/numpy-written folders, and `python/read_dataset.py`,
 //! the reference loader's reading, against ours), `dataset_writer.rs` (`evsim dataset` end to
 //! end: layout, re-runs, resume, thread counts, the noise measurement), `scene_library.rs`
-//! (every dataset scene in `scenes/` makes a dataset that passes the check) and
-//! `metrics_skimage.rs` (the trainer's PSNR / SSIM against scikit-image).
+//! (every dataset scene in `scenes/` makes a dataset that passes the check),
+//! `metrics_skimage.rs` (the trainer's PSNR / SSIM against scikit-image) and `trainer_runs.rs`
+//! (every preset's smoke run, bit-exact resume, run errors and `evtrain` end to end).
 //!
 //! This library holds what those files share: fresh temp folders and the reference Python
 //! (the Mitsuba venv, which also has numpy, h5py and scikit-image), skipped or required by

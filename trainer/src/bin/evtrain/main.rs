@@ -25,28 +25,30 @@ struct Cli {
 enum Cmd {
     /// Train a preset on a dataset into a run folder (resumable).
     Train {
-        /// Dataset folder (written by `evsim dataset`, or a public Ev-DeblurBlender scene).
+        /// Dataset folder (written by `evsim dataset`, or a public Ev-DeblurBlender scene);
+        /// with --resume, the run's own (config.toml).
+        #[arg(long, required_unless_present = "resume")]
+        data: Option<PathBuf>,
+        /// Method preset (`evtrain presets` lists them); with --resume, the run's own.
+        #[arg(long, required_unless_present = "resume")]
+        preset: Option<String>,
+        /// `cpu` (sized for 2 cores) or `paper` (the reference hyper-parameters) [default: cpu].
         #[arg(long)]
-        data: PathBuf,
-        /// Method preset (`evtrain presets` lists them).
-        #[arg(long)]
-        preset: String,
-        /// `cpu` (sized for 2 cores) or `paper` (the reference hyper-parameters).
-        #[arg(long, default_value = "cpu")]
-        scale: String,
+        scale: Option<String>,
         /// Run folder (config, checkpoints, log, evaluation).
         #[arg(long)]
         out: PathBuf,
-        /// Continue the run in --out from its checkpoint.
+        /// Continue the run in --out from its checkpoint (with its recorded settings).
         #[arg(long)]
         resume: bool,
-        /// Override the preset's iteration count.
+        /// Override the preset's iteration count (with --resume: train the run on to this many).
         #[arg(long)]
         iterations: Option<u64>,
-        /// Override the seed.
+        /// Override the seed (a new run only).
         #[arg(long)]
         seed: Option<u64>,
-        /// Worker threads (0: all cores); results are reproducible for a given count.
+        /// Worker threads (0: all cores); results are reproducible for a given count (a new run
+        /// only).
         #[arg(long)]
         threads: Option<usize>,
         /// No progress bar.
@@ -85,7 +87,7 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.cmd {
         Cmd::Train { data, preset, scale, out, resume, iterations, seed, threads, quiet } => {
-            train(&data, &preset, &scale, &out, resume, iterations, seed, threads, quiet)
+            train(data, preset, scale, &out, resume, iterations, seed, threads, quiet)
         }
         Cmd::Eval { run, threads } => eval(&run, threads),
         Cmd::Presets => {
@@ -106,9 +108,9 @@ fn load(data: &Path, cfg: &TrainConfig) -> Result<Dataset> {
 
 #[allow(clippy::too_many_arguments)]
 fn train(
-    data: &Path,
-    preset: &str,
-    scale: &str,
+    data: Option<PathBuf>,
+    preset: Option<String>,
+    scale: Option<String>,
     out: &Path,
     resume: bool,
     iterations: Option<u64>,
@@ -120,16 +122,48 @@ fn train(
     let (record, checkpoint) = if resume {
         let text = std::fs::read_to_string(run.config())
             .with_context(|| format!("{}: no run to resume; train without --resume first", run.config().display()))?;
-        let record: RunRecord = toml::from_str(&text)
+        let mut record: RunRecord = toml::from_str(&text)
             .with_context(|| format!("{}: not a run config; delete the run folder", run.config().display()))?;
+        // A run keeps its settings: flags that would change them are refused, not ignored.
+        let c = &record.config;
+        let recorded = [
+            (
+                "--data",
+                data.map(|d| std::fs::canonicalize(&d).unwrap_or(d).display().to_string()),
+                record.data.display().to_string(),
+            ),
+            ("--preset", preset, record.preset.clone()),
+            ("--scale", scale, scale_name(record.scale).to_string()),
+            ("--seed", seed.map(|s| s.to_string()), c.seed.to_string()),
+            ("--threads", threads.map(|t| t.to_string()), c.threads.to_string()),
+        ];
+        for (flag, given, had) in recorded {
+            if let Some(given) = given.filter(|g| *g != had) {
+                bail!(
+                    "{flag} {given}: the run in {} has {flag} {had} (config.toml); drop {flag} to resume it, or choose another --out",
+                    out.display()
+                );
+            }
+        }
         let model = Model::new(&record.config.model);
         let ck =
             if run.checkpoint().exists() { Some(Checkpoint::load(&model.layout, &run.checkpoint())?) } else { None };
+        if let Some(n) = iterations.filter(|n| *n != record.config.iterations) {
+            let done = ck.as_ref().map_or(0, |c| c.step);
+            if n < done {
+                bail!("--iterations {n}: the run in {} is already at step {done}; pass a larger count", out.display());
+            }
+            record.config.iterations = n;
+            record.config.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
+            simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
+        }
         (record, ck)
     } else {
-        let Some(p) = presets::preset(preset) else {
+        let (Some(data), Some(preset)) = (data, preset) else { bail!("--data and --preset are needed for a new run") };
+        let Some(p) = presets::preset(&preset) else {
             bail!("--preset {preset}: unknown; choose one of {}", presets::names().join(", "));
         };
+        let scale = scale.as_deref().unwrap_or("cpu");
         let Some(scale) = Scale::parse(scale) else { bail!("--scale {scale}: unknown; choose cpu or paper") };
         if run.config().exists() {
             bail!("{}: a run is already there; pass --resume to continue it or choose another --out", out.display());
@@ -145,14 +179,24 @@ fn train(
             config.threads = t;
         }
         config.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
-        let data = std::fs::canonicalize(data).with_context(|| format!("--data {}: no such folder", data.display()))?;
-        let record = RunRecord { preset: preset.to_string(), scale, data, config };
+        let data =
+            std::fs::canonicalize(&data).with_context(|| format!("--data {}: no such folder", data.display()))?;
+        let record = RunRecord { preset, scale, data, config };
         std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the run folder", out.display()))?;
         simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
         (record, None)
     };
     let dataset = load(&record.data, &record.config)?;
     let mut trainer = Trainer::new(&dataset, record.config.clone(), checkpoint)?;
+    let start = trainer.step;
+    if start >= record.config.iterations {
+        println!(
+            "{}: the run is complete ({start} of {} iterations); pass --iterations N to train it further",
+            out.display(),
+            record.config.iterations
+        );
+        return Ok(());
+    }
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
@@ -164,16 +208,12 @@ fn train(
         })
         .context("cannot install the Ctrl-C handler")?;
     }
-    let start = trainer.step;
     let rows = trainer.train(&run, &TrainOptions { progress: !quiet, stop: Some(&stop), max_steps: None })?;
     let last = rows.last();
     println!(
         "{} {} on {}: steps {}..{} in {:.1} s (total {:.1} s), batch PSNR {:.2} dB{}",
         record.preset,
-        match record.scale {
-            Scale::Cpu => "cpu",
-            Scale::Paper => "paper",
-        },
+        scale_name(record.scale),
         record.data.display(),
         start,
         trainer.step,
@@ -186,6 +226,13 @@ fn train(
         println!("stopped at step {}; continue with --resume", trainer.step);
     }
     Ok(())
+}
+
+fn scale_name(scale: Scale) -> &'static str {
+    match scale {
+        Scale::Cpu => "cpu",
+        Scale::Paper => "paper",
+    }
 }
 
 fn eval(dir: &Path, threads: usize) -> Result<()> {

@@ -1,0 +1,416 @@
+//! The trainer end to end on a dataset our simulator writes (`scenes/tiny` at 32x24, 1 spp):
+//! a short run of every preset in the registry (the loss falls, the checkpoint loads, the test
+//! views score), bit-exact resume, reproducibility per seed, clear errors for broken inputs, and
+//! the `evtrain` binary (train, refusal to overwrite, --resume, eval, unknown preset).
+//!
+//! Checkpoints store the training wall time (bytes 28..36, see `trainer::checkpoint`), the one
+//! field that cannot repeat between runs; "byte-identical" below means every other byte.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+use evblur_tests::temp_dir;
+use simulator::dataset::{write_dataset, Overrides, Plan, RunOptions};
+use trainer::checkpoint::Checkpoint;
+use trainer::config::{ImageSource, TrainConfig};
+use trainer::data::dataset::{Dataset, LoadOptions};
+use trainer::engine::model::Model;
+use trainer::eval::evaluate;
+use trainer::metrics::{self, ImageRef};
+use trainer::presets::{self, Preset, Scale, PRESETS};
+use trainer::train::{response, LogRow, RunPaths, TrainOptions, Trainer};
+
+/// Bytes of the checkpoint's training-seconds field (wall time; differs between runs).
+const SECONDS_BYTES: std::ops::Range<usize> = 28..36;
+
+/// Folder of this test binary's files (dataset, runs).
+fn root() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| temp_dir("trainer", "runs"))
+}
+
+/// `scenes/tiny` at 32x24 and 1 spp (9 views: 0 and 8 test, 7 training), written once.
+fn dataset_dir() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let toml = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/tiny/scene.toml");
+        let small =
+            Overrides { width: Some(32), height: Some(24), spp: Some(1), sharp_spp: Some(1), ..Overrides::default() };
+        let plan = Plan::resolve(&toml, &small).unwrap();
+        let out = root().join("tiny");
+        write_dataset(&plan, &RunOptions { out: out.clone(), ..RunOptions::default() }).unwrap();
+        out
+    })
+}
+
+fn load_opts() -> LoadOptions {
+    LoadOptions { read_events: false, ..LoadOptions::default() }
+}
+
+/// The dataset, loaded once (with the sharp training views).
+fn dataset() -> &'static Dataset {
+    static DATA: OnceLock<Dataset> = OnceLock::new();
+    DATA.get_or_init(|| Dataset::load(dataset_dir(), &load_opts()).unwrap())
+}
+
+/// `preset` at the cpu scale, shrunk for seconds-long tests: a 32^3 volume, 256 rays per step,
+/// 2 threads, no periodic evaluation; everything else (fields, samples, rates) as the preset.
+fn small(preset: &Preset, iterations: u64) -> TrainConfig {
+    let mut c = (preset.build)(Scale::Cpu);
+    c.iterations = iterations;
+    c.batch_rays = 256;
+    c.model.coarse_volume.res = 32;
+    c.threads = 2;
+    c.eval_every = 0;
+    c
+}
+
+fn nerf() -> &'static Preset {
+    presets::preset("nerf").expect("the nerf preset")
+}
+
+/// A fresh, empty run folder.
+fn run_dir(name: &str) -> RunPaths {
+    let dir = root().join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    RunPaths::new(&dir)
+}
+
+/// Trains `cfg` from scratch (or from `ck`) into `run`, up to `max_steps`.
+fn train(cfg: &TrainConfig, ck: Option<Checkpoint>, run: &RunPaths, max_steps: Option<u64>) -> Vec<LogRow> {
+    let mut t = Trainer::new(dataset(), cfg.clone(), ck).unwrap_or_else(|e| panic!("{e}"));
+    let rows = t.train(run, &TrainOptions { max_steps, ..TrainOptions::default() }).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(t.step, max_steps.unwrap_or(cfg.iterations));
+    rows
+}
+
+/// The checkpoint file's bytes with the wall-time field zeroed.
+fn checkpoint_bytes(run: &RunPaths) -> Vec<u8> {
+    let mut b = std::fs::read(run.checkpoint()).unwrap();
+    b[SECONDS_BYTES].fill(0);
+    b
+}
+
+/// The log's rows without the seconds column.
+fn log_rows(run: &RunPaths) -> Vec<String> {
+    let text = std::fs::read_to_string(run.log()).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("step,seconds,loss,psnr_batch,psnr_test"));
+    lines
+        .map(|l| {
+            let mut cols: Vec<&str> = l.split(',').collect();
+            assert_eq!(cols.len(), 5, "{l}");
+            cols.remove(1);
+            cols.join(",")
+        })
+        .collect()
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+/// The loss (both passes) and the mean test-view PSNR of a model that renders black (every
+/// colour at the response floor): what training first converges to on this dark scene.
+fn black_baseline(cfg: &TrainConfig) -> (f64, f64) {
+    let d = dataset();
+    let black = response(0.0, (1.0 / cfg.response_gamma) as f32).0;
+    let (mut sum, mut count) = (0.0, 0usize);
+    for &v in &d.split.train {
+        let img = match cfg.images {
+            ImageSource::Blurry => &d.views[v].image,
+            ImageSource::Sharp => d.views[v].sharp.as_ref().unwrap(),
+        };
+        sum += img.data.iter().map(|&y| ((black - y) as f64).powi(2)).sum::<f64>();
+        count += img.data.len();
+    }
+    let (w, h) = (d.intrinsics.width as usize, d.intrinsics.height as usize);
+    let flat = vec![black; w * h * 3];
+    let psnr: Vec<f64> = d
+        .split
+        .test
+        .iter()
+        .map(|&v| {
+            let truth = ImageRef::new(w, h, 3, &d.views[v].image.data).unwrap();
+            metrics::psnr(ImageRef::new(w, h, 3, &flat).unwrap(), truth).unwrap()
+        })
+        .collect();
+    (2.0 * sum / count as f64, mean(&psnr))
+}
+
+#[test]
+fn every_preset_learns_in_a_short_run_and_scores_the_test_views() {
+    // 40 steps: the loss first falls to the black-model level (~step 10), then below it.
+    const STEPS: u64 = 40;
+    assert!(!PRESETS.is_empty());
+    for p in PRESETS {
+        let cfg = small(p, STEPS);
+        let (black_loss, black_psnr) = black_baseline(&cfg);
+        let run = run_dir(&format!("smoke-{}", p.name));
+        let mut t = Trainer::new(dataset(), cfg.clone(), None).unwrap_or_else(|e| panic!("{}: {e}", p.name));
+        let rows = t.train(&run, &TrainOptions::default()).unwrap_or_else(|e| panic!("{}: {e}", p.name));
+        assert_eq!(rows.iter().map(|r| r.step).collect::<Vec<_>>(), (1..=STEPS).collect::<Vec<_>>(), "{}", p.name);
+        let loss: Vec<f64> = rows.iter().map(|r| r.loss).collect();
+        assert!(loss.iter().all(|l| l.is_finite() && *l > 0.0), "{}: loss {loss:?}", p.name);
+        // The loss falls (mean of the last 3 steps against the first 3), and below half of what
+        // a black model scores: the field has learnt some of the scene, not only to go dark.
+        let (first, last) = (mean(&loss[..3]), mean(&loss[loss.len() - 3..]));
+        assert!(last < 0.5 * first, "{}: loss {first:.4} -> {last:.4} ({loss:?})", p.name);
+        assert!(last < 0.5 * black_loss, "{}: loss {last:.4}, black model {black_loss:.4} ({loss:?})", p.name);
+
+        // The final checkpoint holds the trainer's state.
+        assert!(run.checkpoint().is_file(), "{}: no checkpoint", p.name);
+        let ck = Checkpoint::load(&t.model.layout, &run.checkpoint()).unwrap_or_else(|e| panic!("{}: {e}", p.name));
+        assert_eq!(ck.step, STEPS);
+        assert_eq!(ck.adam.t, STEPS);
+        assert!(ck.params == t.params && ck.adam == t.adam, "{}: the checkpoint is not the trainer's state", p.name);
+        assert_eq!(log_rows(&run).len(), STEPS as usize);
+
+        // The test views score finite PSNR / SSIM, above the black model, the same as the log's
+        // end-of-run evaluation.
+        let model = Model::new(&cfg.model);
+        let eval_dir = run.eval();
+        std::fs::create_dir_all(&eval_dir).unwrap();
+        let s = evaluate(dataset(), &model, &ck.params, &cfg, 2, Some(&eval_dir)).unwrap();
+        assert_eq!(s.views.iter().map(|v| v.view).collect::<Vec<_>>(), dataset().split.test, "{}", p.name);
+        for v in &s.views {
+            assert!(v.psnr.is_finite() && v.ssim.is_finite() && v.ssim <= 1.0, "{}: {v:?}", p.name);
+            assert!(eval_dir.join(&v.name).is_file(), "{}: no {}", p.name, v.name);
+        }
+        assert!(
+            s.mean_psnr() > black_psnr + 0.5,
+            "{}: test PSNR {:.2} dB, black model {black_psnr:.2} dB",
+            p.name,
+            s.mean_psnr()
+        );
+        assert_eq!(rows.last().unwrap().psnr_test, Some(s.mean_psnr()), "{}", p.name);
+        println!("{}: loss {first:.4} -> {last:.4} (black {black_loss:.4}), test PSNR {:.2} dB (black {black_psnr:.2}), SSIM {:.3}", p.name, s.mean_psnr(), s.mean_ssim());
+        std::fs::remove_dir_all(&run.dir).unwrap();
+    }
+}
+
+#[test]
+fn a_resumed_run_repeats_the_uninterrupted_one_bit_for_bit() {
+    const N: u64 = 8;
+    // Evaluations and checkpoints every 3 steps, so the log has test PSNRs on both sides of N/2.
+    let cfg = TrainConfig { eval_every: 3, checkpoint_every: 3, ..small(nerf(), N) };
+    let whole = run_dir("resume-whole");
+    train(&cfg, None, &whole, None);
+
+    let halves = run_dir("resume-halves");
+    let first = train(&cfg, None, &halves, Some(N / 2));
+    assert_eq!(first.len(), (N / 2) as usize);
+    let model = Model::new(&cfg.model);
+    let ck = Checkpoint::load(&model.layout, &halves.checkpoint()).unwrap();
+    assert_eq!(ck.step, N / 2);
+    let second = train(&cfg, Some(ck), &halves, None);
+    assert_eq!(second.first().map(|r| r.step), Some(N / 2 + 1));
+
+    assert!(checkpoint_bytes(&whole) == checkpoint_bytes(&halves), "the final checkpoints differ");
+    let (a, b) = (log_rows(&whole), log_rows(&halves));
+    assert_eq!(a.len(), N as usize);
+    assert_eq!(a, b);
+    assert!(a.iter().filter(|r| !r.ends_with(',')).count() == 3, "test PSNR at steps 3, 6, 8: {a:?}");
+    for run in [whole, halves] {
+        std::fs::remove_dir_all(&run.dir).unwrap();
+    }
+}
+
+#[test]
+fn runs_repeat_for_a_seed_and_differ_between_seeds() {
+    let cfg = small(nerf(), 4);
+    let (a, b) = (run_dir("seed-a"), run_dir("seed-b"));
+    train(&cfg, None, &a, None);
+    train(&cfg, None, &b, None);
+    assert!(checkpoint_bytes(&a) == checkpoint_bytes(&b), "same seed and threads, different checkpoints");
+
+    let c = run_dir("seed-c");
+    train(&TrainConfig { seed: cfg.seed + 1, ..cfg.clone() }, None, &c, None);
+    let layout = Model::new(&cfg.model).layout;
+    let (pa, pc) =
+        (Checkpoint::load(&layout, &a.checkpoint()).unwrap(), Checkpoint::load(&layout, &c.checkpoint()).unwrap());
+    let differ = pa.params.iter().zip(&pc.params).filter(|(x, y)| x != y).count();
+    assert!(differ > pa.params.len() / 2, "another seed changes only {differ} of {} parameters", pa.params.len());
+    for run in [a, b, c] {
+        std::fs::remove_dir_all(&run.dir).unwrap();
+    }
+}
+
+#[test]
+fn truncated_and_foreign_checkpoints_are_refused_with_the_reason() {
+    let cfg = small(nerf(), 1);
+    let model = Model::new(&cfg.model);
+    let dir = root().join("bad-checkpoints");
+    std::fs::create_dir_all(&dir).unwrap();
+    let good = dir.join("good.bin");
+    let params = model.init(cfg.seed);
+    let adam = trainer::engine::adam::Adam::new(&model.layout);
+    Checkpoint { step: 0, seconds: 0.0, params, adam }.save(&model.layout, &good).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    assert!(Checkpoint::load(&model.layout, &good).is_ok());
+
+    // Cut in the middle of the parameters.
+    let cut = dir.join("cut.bin");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let e = Checkpoint::load(&model.layout, &cut).unwrap_err().to_string();
+    assert!(e.contains("truncated") && e.contains("cut.bin"), "{e}");
+    // Cut inside the header.
+    std::fs::write(&cut, &bytes[..30]).unwrap();
+    let e = Checkpoint::load(&model.layout, &cut).unwrap_err().to_string();
+    assert!(e.contains("cut.bin") && e.contains("header"), "{e}");
+
+    // Another model shape: the same file read for a 24^3 volume.
+    let mut other = cfg.model.clone();
+    other.coarse_volume.res = 24;
+    let e = Checkpoint::load(&Model::new(&other).layout, &good).unwrap_err().to_string();
+    assert!(e.contains("different model shape") && e.contains("good.bin"), "{e}");
+
+    // No file at all.
+    let e = Checkpoint::load(&model.layout, &dir.join("none.bin")).unwrap_err().to_string();
+    assert!(e.contains("none.bin") && e.contains("evtrain train"), "{e}");
+}
+
+#[test]
+fn the_sharp_preset_without_sharp_images_names_the_missing_folder() {
+    // A copy of the dataset without images_sharp_1/: it still loads (public data has none) and
+    // trains the blurry preset, but the sharp preset refuses it.
+    let dir = root().join("no-sharp");
+    let _ = std::fs::remove_dir_all(&dir);
+    copy_dir(dataset_dir(), &dir);
+    std::fs::remove_dir_all(dir.join("images_sharp_1")).unwrap();
+    let data = Dataset::load(&dir, &load_opts()).unwrap_or_else(|e| panic!("{e}"));
+    assert!(data.views.iter().all(|v| v.sharp.is_none()));
+    assert!(Trainer::new(&data, small(nerf(), 1), None).is_ok());
+    let sharp = presets::preset("nerf-sharp").expect("the nerf-sharp preset");
+    let Err(e) = Trainer::new(&data, small(sharp, 1), None) else { panic!("nerf-sharp trained without sharp images") };
+    let e = e.to_string();
+    assert!(e.contains("images_sharp_1") && e.contains("preset nerf"), "{e}");
+}
+
+#[test]
+fn out_of_range_settings_are_refused_naming_the_field() {
+    let base = small(nerf(), 1);
+    let cases = [
+        ("response_gamma", TrainConfig { response_gamma: f64::NAN, ..base.clone() }),
+        ("batch_rays", TrainConfig { batch_rays: 0, ..base.clone() }),
+    ];
+    for (field, cfg) in cases {
+        let e = cfg.validate().unwrap_err();
+        assert!(e.contains(field), "{field}: {e}");
+        let Err(e) = Trainer::new(dataset(), cfg, None) else { panic!("{field}: Trainer::new accepted it") };
+        assert!(e.to_string().contains(field), "{field}: {e}");
+    }
+    assert_eq!(base.validate(), Ok(()));
+}
+
+/// Copies the files of `from` (recursively) into `to`.
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// The `evtrain` binary beside this test's target folder, built (or brought up to date) by
+/// cargo first: binaries of another package are not built for this crate's tests.
+fn evtrain() -> &'static Path {
+    static EXE: OnceLock<PathBuf> = OnceLock::new();
+    EXE.get_or_init(|| {
+        let this = std::env::current_exe().unwrap();
+        let profile_dir = this.parent().and_then(Path::parent).expect("target/<profile>/deps/<test>");
+        let target_dir = profile_dir.parent().expect("target/<profile>");
+        let profile = profile_dir.file_name().unwrap().to_string_lossy().into_owned();
+        let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
+        let mut cmd = Command::new(env!("CARGO"));
+        cmd.args(["build", "--quiet", "-p", "evblur-trainer", "--bin", "evtrain", "--manifest-path"])
+            .arg(&manifest)
+            .arg("--target-dir")
+            .arg(target_dir);
+        if profile != "debug" {
+            cmd.args(["--profile", &profile]);
+        }
+        let out = cmd.output().unwrap();
+        assert!(out.status.success(), "cargo build --bin evtrain failed:\n{}", String::from_utf8_lossy(&out.stderr));
+        let exe = profile_dir.join(format!("evtrain{}", std::env::consts::EXE_SUFFIX));
+        assert!(exe.is_file(), "{} is missing after the build", exe.display());
+        exe
+    })
+}
+
+/// Runs `evtrain args...` (no backtraces in its messages).
+fn run_evtrain(args: &[&str]) -> Output {
+    Command::new(evtrain()).args(args).env_remove("RUST_BACKTRACE").env_remove("RUST_LIB_BACKTRACE").output().unwrap()
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = run_evtrain(args);
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "evtrain {args:?} failed:\n{stdout}\n{stderr}");
+    stdout.into_owned()
+}
+
+fn fails(args: &[&str]) -> String {
+    let out = run_evtrain(args);
+    assert!(!out.status.success(), "evtrain {args:?} succeeded:\n{}", String::from_utf8_lossy(&out.stdout));
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
+    let run = run_dir("cli");
+    std::fs::remove_dir_all(&run.dir).unwrap();
+    let (data, out) = (dataset_dir().to_str().unwrap(), run.dir.to_str().unwrap());
+    let args = ["train", "--data", data, "--preset", "nerf", "--out", out, "--iterations", "4", "--quiet"];
+    ok(&args);
+    assert_eq!(log_rows(&run).len(), 4);
+    let model_cfg = (nerf().build)(Scale::Cpu).model;
+    let layout = Model::new(&model_cfg).layout;
+    assert_eq!(Checkpoint::load(&layout, &run.checkpoint()).unwrap().step, 4);
+
+    // The same command again refuses, leaving the run as it was.
+    let before = std::fs::read(run.checkpoint()).unwrap();
+    let e = fails(&args);
+    assert!(e.contains("--resume") && e.contains(out), "{e}");
+    assert!(std::fs::read(run.checkpoint()).unwrap() == before);
+
+    // --resume refuses flags that would change the run, and trains it on to a new iteration
+    // count (--data and --preset come from the run's config.toml).
+    let e = fails(&["train", "--resume", "--out", out, "--seed", "7", "--iterations", "6", "--quiet"]);
+    assert!(e.contains("--seed 7") && e.contains("config.toml"), "{e}");
+    let first_rows = log_rows(&run);
+    ok(&["train", "--resume", "--out", out, "--iterations", "6", "--quiet"]);
+    let rows = log_rows(&run);
+    assert_eq!(rows.len(), 6);
+    assert_eq!(rows[..4], first_rows[..]);
+    assert_eq!(Checkpoint::load(&layout, &run.checkpoint()).unwrap().step, 6);
+
+    // eval writes metrics.json and one PNG per test view.
+    ok(&["eval", out]);
+    let metrics: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.dir.join("metrics.json")).unwrap()).unwrap();
+    let (psnr, ssim) = (metrics["psnr"].as_f64().unwrap(), metrics["ssim"].as_f64().unwrap());
+    assert!(psnr.is_finite() && ssim.is_finite(), "{metrics}");
+    assert_eq!(metrics["step"].as_u64(), Some(6));
+    // The same score the log recorded at the last step (4 decimals there).
+    let logged: f64 = rows[5].rsplit(',').next().unwrap().parse().unwrap();
+    assert!((logged - psnr).abs() < 1e-4, "log {logged} vs metrics.json {psnr}");
+    for v in &dataset().split.test {
+        let png = run.eval().join(&dataset().views[*v].name);
+        assert!(png.is_file(), "{} is missing", png.display());
+    }
+
+    // An unknown preset lists the registry.
+    let e = fails(&["train", "--data", data, "--preset", "nope", "--out", &format!("{out}-nope"), "--quiet"]);
+    assert!(e.contains("nope"), "{e}");
+    for p in PRESETS {
+        assert!(e.contains(p.name), "{e} does not list {}", p.name);
+    }
+    std::fs::remove_dir_all(&run.dir).unwrap();
+}

@@ -1,8 +1,9 @@
-//! Checkpoints: parameters, Adam moments, the step and the training time, in one binary file
-//! written atomically (temporary file + rename), so an interrupted write leaves the previous
-//! checkpoint intact. Layout (little-endian): magic `EVBLURCK`, format version u32, layout
-//! fingerprint u64, step u64, training seconds f64, parameter count u64, then params, m and v
-//! as f32.
+//! Checkpoints: parameters, Adam moments and the step, in one binary file written atomically
+//! (temporary file + rename), so an interrupted write leaves the previous checkpoint intact.
+//! Layout (little-endian): magic `EVBLURCK`, format version u32, layout fingerprint u64, step
+//! u64, parameter count u64, then params, m and v as f32. Same run, same bytes: the training
+//! wall time, which cannot repeat, goes to a text sidecar (`<checkpoint>.seconds`:
+//! "step seconds").
 
 use std::path::Path;
 
@@ -11,14 +12,15 @@ use crate::engine::params::Layout;
 use crate::error::TrainError;
 
 const MAGIC: &[u8; 8] = b"EVBLURCK";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
+const HEADER: usize = 36;
 
 /// A training state.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Checkpoint {
     /// Iterations done.
     pub step: u64,
-    /// Training wall time so far (s), excluding evaluation.
+    /// Training wall time so far (s), excluding evaluation (kept in the sidecar file).
     pub seconds: f64,
     /// Parameters.
     pub params: Vec<f32>,
@@ -41,12 +43,11 @@ impl Checkpoint {
     /// Writes the checkpoint to `path` atomically.
     pub fn save(&self, layout: &Layout, path: &Path) -> Result<(), TrainError> {
         let n = self.params.len();
-        let mut bytes = Vec::with_capacity(44 + 12 * n);
+        let mut bytes = Vec::with_capacity(HEADER + 12 * n);
         bytes.extend_from_slice(MAGIC);
         bytes.extend_from_slice(&VERSION.to_le_bytes());
         bytes.extend_from_slice(&fingerprint(layout).to_le_bytes());
         bytes.extend_from_slice(&self.step.to_le_bytes());
-        bytes.extend_from_slice(&self.seconds.to_le_bytes());
         bytes.extend_from_slice(&(n as u64).to_le_bytes());
         for v in [&self.params, &self.adam.m, &self.adam.v] {
             for x in v.iter() {
@@ -66,7 +67,7 @@ impl Checkpoint {
     pub fn load(layout: &Layout, path: &Path) -> Result<Checkpoint, TrainError> {
         let bytes = std::fs::read(path).map_err(|e| TrainError::io(path, e, "train first (evtrain train)"))?;
         let bad = |what: &str| TrainError::run(path, what.to_string(), "delete the run folder and train again");
-        if bytes.len() < 44 || &bytes[..8] != MAGIC {
+        if bytes.len() < HEADER || &bytes[..8] != MAGIC {
             return Err(bad("not an evblur checkpoint (bad header)"));
         }
         let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
@@ -78,17 +79,33 @@ impl Checkpoint {
             return Err(bad("saved for a different model shape than config.toml describes"));
         }
         let step = u64_at(20);
-        let seconds = f64::from_le_bytes(bytes[28..36].try_into().expect("8 bytes"));
-        let n = u64_at(36) as usize;
-        if n != layout.len() || bytes.len() != 44 + 12 * n {
+        let n = u64_at(28) as usize;
+        if n != layout.len() || bytes.len() != HEADER + 12 * n {
             return Err(bad(&format!("truncated: {} bytes for {} parameters", bytes.len(), layout.len())));
         }
         let read = |k: usize| -> Vec<f32> {
-            bytes[44 + 4 * n * k..44 + 4 * n * (k + 1)]
+            bytes[HEADER + 4 * n * k..HEADER + 4 * n * (k + 1)]
                 .chunks_exact(4)
                 .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
                 .collect()
         };
+        // The wall time of the same step, when the sidecar has it (0 otherwise).
+        let seconds = std::fs::read_to_string(seconds_path(path))
+            .ok()
+            .and_then(|t| {
+                let mut it = t.split_whitespace();
+                let s: u64 = it.next()?.parse().ok()?;
+                let secs: f64 = it.next()?.parse().ok()?;
+                (s == step && secs.is_finite()).then_some(secs)
+            })
+            .unwrap_or(0.0);
         Ok(Checkpoint { step, seconds, params: read(0), adam: Adam { m: read(1), v: read(2), t: step } })
     }
+}
+
+/// The wall-time sidecar of a checkpoint file.
+pub fn seconds_path(path: &Path) -> std::path::PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".seconds");
+    path.with_file_name(name)
 }

@@ -276,7 +276,10 @@ fn bench(reps: usize) -> Result<()> {
             trainer::bench::reference_config(),
         ),
         ("cpu-scale step (nerf --scale cpu)", presets::nerf(Scale::Cpu)),
-        ("paper-scale step (nerf --scale paper: 64 + 128 samples, fine VM 512^3, 256-wide MLP)", presets::nerf(Scale::Paper)),
+        (
+            "paper-scale step (nerf --scale paper: 64 + 128 samples, fine VM 512^3, 256-wide MLP)",
+            presets::nerf(Scale::Paper),
+        ),
     ];
     println!("{threads} threads, {reps} timed steps each after one warm-up");
     for (name, cfg) in shapes {

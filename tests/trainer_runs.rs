@@ -51,9 +51,11 @@ fn dataset() -> &'static Dataset {
 }
 
 /// `preset` at the cpu scale, shrunk for seconds-long tests: a 32^3 volume, 256 rays per step,
-/// 2 threads, no periodic evaluation; everything else (fields, samples, rates) as the preset.
+/// 2 threads, no periodic evaluation, the volume box fitted to the dataset (as `evtrain train`
+/// records it); everything else (fields, samples, rates) as the preset.
 fn small(preset: &Preset, iterations: u64) -> TrainConfig {
     let mut c = (preset.build)(Scale::Cpu);
+    c.model.bounds = Some(trainer::train::scene_bounds(dataset()));
     c.iterations = iterations;
     c.batch_rays = 256;
     c.model.coarse_volume.res = 32;
@@ -364,7 +366,9 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
     let args = ["train", "--data", data, "--preset", "nerf", "--out", out, "--iterations", "4", "--quiet"];
     ok(&args);
     assert_eq!(log_rows(&run).len(), 4);
-    let model_cfg = (nerf().build)(Scale::Cpu).model;
+    // The run records the volume box fitted to the dataset.
+    let mut model_cfg = (nerf().build)(Scale::Cpu).model;
+    model_cfg.bounds = Some(trainer::train::scene_bounds(dataset()));
     let layout = Model::new(&model_cfg).layout;
     assert_eq!(Checkpoint::load(&layout, &run.checkpoint()).unwrap().step, 4);
 

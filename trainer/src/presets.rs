@@ -95,6 +95,7 @@ pub fn paper_model() -> ModelConfig {
         density_noise: 1.0,
         tv_plane: 1e-2 * 5.0,
         tv_line: 1e-3 * 5.0,
+        bounds: None,
     }
 }
 

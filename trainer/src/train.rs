@@ -21,7 +21,7 @@ use crate::config::{ImageSource, TrainConfig};
 use crate::data::dataset::Dataset;
 use crate::data::rays::Ray;
 use crate::engine::adam::Adam;
-use crate::engine::model::Model;
+use crate::engine::model::{Aabb, Model};
 use crate::engine::parallel::GradBuffers;
 use crate::engine::renderer::{RayChunk, Renderer};
 use crate::engine::rng::Rng;
@@ -71,6 +71,40 @@ pub fn unzip(rays: &[PreparedRay]) -> RayColumns {
         rays.iter().map(|r| r.dir).collect(),
         rays.iter().map(|r| r.viewdir).collect(),
     )
+}
+
+/// The NDC box every camera of `data` sees (every view's pose and every 10th pose of the dense
+/// trajectory; border pixels every 8 px; depths t = 0, 0.5, 0.9, 1 along each NDC ray, t = 1
+/// being infinity), padded by 5% of its size per side; z spans the full NDC [-1, 1].
+pub fn scene_bounds(data: &Dataset) -> Aabb {
+    let (w, h) = (data.intrinsics.width, data.intrinsics.height);
+    let mut border: Vec<(u32, u32)> = Vec::new();
+    for i in (0..w).step_by(8).chain([w - 1]) {
+        border.extend([(i, 0), (i, h - 1)]);
+    }
+    for j in (0..h).step_by(8).chain([h - 1]) {
+        border.extend([(0, j), (w - 1, j)]);
+    }
+    let mut poses: Vec<_> = data.views.iter().map(|v| v.pose).collect();
+    let times = data.trajectory.times_us();
+    poses.extend(times.iter().step_by(10).filter_map(|&t| data.trajectory.pose_at(t)));
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for pose in &poses {
+        for &(i, j) in &border {
+            let r = data.intrinsics.ndc(&data.intrinsics.ray(pose, i, j), NDC_NEAR);
+            for t in [0.0, 0.5, 0.9, 1.0] {
+                let p = r.origin + t * r.direction;
+                for (a, v) in [p.x, p.y].into_iter().enumerate() {
+                    if v.is_finite() {
+                        lo[a] = lo[a].min(v);
+                        hi[a] = hi[a].max(v);
+                    }
+                }
+            }
+        }
+    }
+    let pad = |a: usize| 0.05 * (hi[a] - lo[a]);
+    Aabb { min: [lo[0] - pad(0), lo[1] - pad(1), -1.0], max: [hi[0] + pad(0), hi[1] + pad(1), 1.0] }
 }
 
 /// Files of a run folder.
@@ -177,7 +211,11 @@ fn check_images(data: &Dataset, source: ImageSource) -> Result<Vec<usize>, Train
 impl<'a> Trainer<'a> {
     /// A fresh run (parameters from the seed) or, with `checkpoint`, a resumed one.
     pub fn new(data: &'a Dataset, cfg: TrainConfig, checkpoint: Option<Checkpoint>) -> Result<Trainer<'a>, TrainError> {
+        let mut cfg = cfg;
         cfg.validate().map_err(TrainError::Config)?;
+        if cfg.model.bounds.is_none() {
+            cfg.model.bounds = Some(scene_bounds(data));
+        }
         let train_views = check_images(data, cfg.images)?;
         let model = Model::new(&cfg.model);
         let threads = if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads };

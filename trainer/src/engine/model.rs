@@ -16,12 +16,35 @@ use super::vm::VmVolume;
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct VolumeShape {
-    /// Grid resolution along each axis (the grid is a cube over NDC [-1, 1]^3).
+    /// About `res^3` voxels, cubic, over the model's bounds (see [`Aabb::grid`]).
     pub res: usize,
     /// Components of the three plane-line pairs (reference coarse: [64, 16, 16]).
     pub comps: [usize; 3],
     /// Features after the basis matrix (reference: 32).
     pub features: usize,
+}
+
+/// An axis-aligned box in NDC.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Aabb {
+    /// Minimum corner.
+    pub min: [f64; 3],
+    /// Maximum corner.
+    pub max: [f64; 3],
+}
+
+impl Aabb {
+    /// NDC's unit box [-1, 1]^3 (the reference camera's frustum from the near plane to infinity).
+    pub const UNIT: Aabb = Aabb { min: [-1.0; 3], max: [1.0; 3] };
+
+    /// Grid points per axis for about `res^3` cubic voxels over the box (TensoRF's
+    /// `N_to_reso`): res_a = round(res * extent_a / cbrt(prod extents)), at least 2.
+    pub fn grid(&self, res: usize) -> [usize; 3] {
+        let e: [f64; 3] = std::array::from_fn(|a| (self.max[a] - self.min[a]).max(1e-9));
+        let g = (e[0] * e[1] * e[2]).cbrt();
+        std::array::from_fn(|a| ((res as f64 * e[a] / g).round() as usize).max(2))
+    }
 }
 
 /// Everything that fixes the model's parameters and how rays are sampled.
@@ -47,6 +70,9 @@ pub struct ModelConfig {
     pub tv_plane: f64,
     /// TV weight on the lines (reference: 1e-3 x 5).
     pub tv_line: f64,
+    /// The NDC box the volumes cover; `None` in a preset means "fit it to the dataset's
+    /// cameras" (`trainer::train::scene_bounds`), and a run records the resolved box.
+    pub bounds: Option<Aabb>,
 }
 
 /// A built model: layout and levels (the parameters live in a separate flat vector).
@@ -68,7 +94,10 @@ impl Model {
     /// Builds the layout of `config`.
     pub fn new(config: &ModelConfig) -> Model {
         let mut layout = Layout::default();
-        let vs = |l: &mut Layout, name: &str, s: &VolumeShape| VmVolume::new(l, name, [s.res; 3], s.comps, s.features);
+        let b = config.bounds.unwrap_or(Aabb::UNIT);
+        let vs = |l: &mut Layout, name: &str, s: &VolumeShape| {
+            VmVolume::new(l, name, b.grid(s.res), s.comps, s.features, (b.min, b.max))
+        };
         let cv = vs(&mut layout, "coarse.vm", &config.coarse_volume);
         let mut volumes = vec![cv.clone()];
         let coarse = Field::new(&mut layout, "coarse", vec![cv.clone()], config.coarse.clone());

@@ -7,8 +7,8 @@
 //!
 //! Storage puts the component index innermost (`plane[(v * res_u + u) * n + k]`,
 //! `line[w * n + k]`), so one grid tap is a contiguous run of n values: gathers and the
-//! gradient scatter are vector loops. Coordinates span the box `[lo, hi]^3` (NDC: -1..1) with
-//! grid-sample `align_corners = true` (lo -> index 0, hi -> index res - 1); points outside are
+//! gradient scatter are vector loops. Coordinates span an axis-aligned box (in NDC) with
+//! grid-sample `align_corners = true` (min -> index 0, max -> index res - 1 on each axis); points outside are
 //! clamped to the border, where the position gradient is zero.
 //!
 //! The TV regulariser (TensoRF's `TVLoss`) on each plane is 2 (h_tv / count_h + w_tv / count_w)
@@ -38,8 +38,8 @@ pub struct VmVolume {
     pub lines: [usize; 3],
     /// Basis matrix: sum(comps) -> features, no bias.
     pub basis: Dense,
-    /// Box covered by the grid (same bounds on every axis).
-    pub bounds: (f64, f64),
+    /// Box covered by the grid: (min corner, max corner).
+    pub bounds: ([f64; 3], [f64; 3]),
 }
 
 /// Where one point falls in one plane-line pair: tap indices and weights.
@@ -58,7 +58,14 @@ struct Taps<R> {
 
 impl VmVolume {
     /// Allocates the planes, lines and basis of a volume in `layout`.
-    pub fn new(layout: &mut Layout, name: &str, res: [usize; 3], comps: [usize; 3], features: usize) -> VmVolume {
+    pub fn new(
+        layout: &mut Layout,
+        name: &str,
+        res: [usize; 3],
+        comps: [usize; 3],
+        features: usize,
+        bounds: ([f64; 3], [f64; 3]),
+    ) -> VmVolume {
         let mut planes = [0; 3];
         let mut lines = [0; 3];
         for m in 0..3 {
@@ -67,7 +74,7 @@ impl VmVolume {
             lines[m] = layout.alloc(format!("{name}.line{m}"), res[VEC[m]] * comps[m], LrClass::Volume);
         }
         let basis = Dense::new(layout, &format!("{name}.basis"), comps.iter().sum(), features, false, Act::None);
-        VmVolume { res, comps, planes, lines, basis, bounds: (-1.0, 1.0) }
+        VmVolume { res, comps, planes, lines, basis, bounds }
     }
 
     /// Number of raw VM components (the basis input width).
@@ -98,7 +105,7 @@ impl VmVolume {
     /// Grid coordinate of `x` on `axis`, its clamped cell and fraction, and whether it is inside.
     fn cell<R: Real>(&self, x: R, axis: usize) -> (usize, R, bool) {
         let n = self.res[axis];
-        let (lo, hi) = self.bounds;
+        let (lo, hi) = (self.bounds.0[axis], self.bounds.1[axis]);
         let g = (x - R::of(lo)) * R::of((n - 1) as f64 / (hi - lo));
         let inside = g >= R::zero() && g <= R::of((n - 1) as f64);
         let g = g.max(R::zero()).min(R::of((n - 1) as f64));
@@ -155,7 +162,6 @@ impl VmVolume {
     pub fn components_backward<R: Real>(&self, params: &[R], grads: &mut [R], pos: [R; 3], d_out: &[R]) -> [R; 3] {
         let mut dpos = [R::zero(); 3];
         let mut o = 0;
-        let (lo, hi) = self.bounds;
         for m in 0..3 {
             let n = self.comps[m];
             let [a, b] = MAT[m];
@@ -209,6 +215,7 @@ impl VmVolume {
             let axes = [a, b, VEC[m]];
             for (j, d) in [du, dv, dw].into_iter().enumerate() {
                 if t.inside[j] {
+                    let (lo, hi) = (self.bounds.0[axes[j]], self.bounds.1[axes[j]]);
                     let scale = R::of((self.res[axes[j]] - 1) as f64 / (hi - lo));
                     dpos[axes[j]] += d * scale;
                 }

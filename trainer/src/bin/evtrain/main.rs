@@ -119,7 +119,7 @@ fn train(
     quiet: bool,
 ) -> Result<()> {
     let run = RunPaths::new(out);
-    let (record, checkpoint) = if resume {
+    let (record, checkpoint, preloaded) = if resume {
         let text = std::fs::read_to_string(run.config())
             .with_context(|| format!("{}: no run to resume; train without --resume first", run.config().display()))?;
         let mut record: RunRecord = toml::from_str(&text)
@@ -157,7 +157,7 @@ fn train(
             record.config.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
             simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
         }
-        (record, ck)
+        (record, ck, None)
     } else {
         let (Some(data), Some(preset)) = (data, preset) else { bail!("--data and --preset are needed for a new run") };
         let Some(p) = presets::preset(&preset) else {
@@ -181,12 +181,20 @@ fn train(
         config.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
         let data =
             std::fs::canonicalize(&data).with_context(|| format!("--data {}: no such folder", data.display()))?;
+        // The volume box is fitted to the dataset's cameras once and recorded with the run.
+        let dataset = load(&data, &config)?;
+        if config.model.bounds.is_none() {
+            config.model.bounds = Some(trainer::train::scene_bounds(&dataset));
+        }
         let record = RunRecord { preset, scale, data, config };
         std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the run folder", out.display()))?;
         simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
-        (record, None)
+        (record, None, Some(dataset))
     };
-    let dataset = load(&record.data, &record.config)?;
+    let dataset = match preloaded {
+        Some(d) => d,
+        None => load(&record.data, &record.config)?,
+    };
     let mut trainer = Trainer::new(&dataset, record.config.clone(), checkpoint)?;
     let start = trainer.step;
     if start >= record.config.iterations {

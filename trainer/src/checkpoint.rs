@@ -54,13 +54,17 @@ impl Checkpoint {
                 bytes.extend_from_slice(&x.to_le_bytes());
             }
         }
-        simulator::image_io::write_atomic(path, &bytes).map_err(|e| {
-            TrainError::run(
-                path,
-                format!("cannot write the checkpoint: {e:#}"),
-                "free disk space or choose another --out",
-            )
-        })
+        let write = |p: &Path, b: &[u8]| {
+            simulator::image_io::write_atomic(p, b).map_err(|e| {
+                TrainError::run(
+                    p,
+                    format!("cannot write the checkpoint: {e:#}"),
+                    "free disk space or choose another --out",
+                )
+            })
+        };
+        write(path, &bytes)?;
+        write(&seconds_path(path), format!("{} {}\n", self.step, self.seconds).as_bytes())
     }
 
     /// Reads a checkpoint saved for `layout`.
@@ -108,4 +112,34 @@ pub fn seconds_path(path: &Path) -> std::path::PathBuf {
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(".seconds");
     path.with_file_name(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::params::LrClass;
+
+    #[test]
+    fn round_trip_keeps_state_and_wall_time_in_the_sidecar() {
+        let mut layout = Layout::default();
+        layout.alloc("a", 3, LrClass::Volume);
+        let dir = std::env::temp_dir().join(format!("evblur-ck-{}", std::process::id()));
+        let path = dir.join("checkpoint.bin");
+        let ck = Checkpoint {
+            step: 7,
+            seconds: 12.5,
+            params: vec![1.0, -2.0, 3.5],
+            adam: Adam { m: vec![0.1, 0.2, 0.3], v: vec![1e-3, 2e-3, 3e-3], t: 7 },
+        };
+        ck.save(&layout, &path).unwrap();
+        assert_eq!(Checkpoint::load(&layout, &path).unwrap(), ck);
+        // The binary file does not depend on the wall time.
+        let bytes = std::fs::read(&path).unwrap();
+        Checkpoint { seconds: 99.0, ..ck.clone() }.save(&layout, &path).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), bytes);
+        // A sidecar of another step is ignored (time unknown: 0).
+        std::fs::write(seconds_path(&path), "6 3.0\n").unwrap();
+        assert_eq!(Checkpoint::load(&layout, &path).unwrap().seconds, 0.0);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -38,6 +38,10 @@ enum Cmd {
         /// Run folder (config, checkpoints, log, evaluation).
         #[arg(long)]
         out: PathBuf,
+        /// A training configuration (TOML, as `evtrain presets --show NAME` prints) replacing
+        /// the preset's; the preset name still labels the run.
+        #[arg(long)]
+        config: Option<PathBuf>,
         /// Continue the run in --out from its checkpoint (with its recorded settings).
         #[arg(long)]
         resume: bool,
@@ -63,8 +67,15 @@ enum Cmd {
         #[arg(long, default_value_t = 0)]
         threads: usize,
     },
-    /// List the presets.
-    Presets,
+    /// List the presets, or print one's configuration as TOML (to edit and pass to --config).
+    Presets {
+        /// Print this preset's configuration.
+        #[arg(long)]
+        show: Option<String>,
+        /// Scale of the printed configuration.
+        #[arg(long, default_value = "cpu")]
+        scale: String,
+    },
     /// Time optimisation steps: the reference step and the cpu-scale step.
     Bench {
         /// Timed steps per shape (after one warm-up).
@@ -86,14 +97,25 @@ struct RunRecord {
 fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::Train { data, preset, scale, out, resume, iterations, seed, threads, quiet } => {
-            train(data, preset, scale, &out, resume, iterations, seed, threads, quiet)
+        Cmd::Train { data, preset, scale, out, config, resume, iterations, seed, threads, quiet } => {
+            if resume && config.is_some() {
+                bail!("--config: a resumed run keeps its recorded config.toml; drop --config");
+            }
+            train(data, preset, scale, &out, config, resume, iterations, seed, threads, quiet)
         }
         Cmd::Eval { run, threads } => eval(&run, threads),
-        Cmd::Presets => {
+        Cmd::Presets { show: None, .. } => {
             for p in presets::PRESETS {
                 println!("{:<14} {}", p.name, p.description);
             }
+            Ok(())
+        }
+        Cmd::Presets { show: Some(name), scale } => {
+            let Some(p) = presets::preset(&name) else {
+                bail!("--show {name}: unknown; choose one of {}", presets::names().join(", "));
+            };
+            let Some(scale) = Scale::parse(&scale) else { bail!("--scale {scale}: unknown; choose cpu or paper") };
+            print!("{}", toml::to_string(&(p.build)(scale))?);
             Ok(())
         }
         Cmd::Bench { reps } => bench(reps),
@@ -112,6 +134,7 @@ fn train(
     preset: Option<String>,
     scale: Option<String>,
     out: &Path,
+    config_file: Option<PathBuf>,
     resume: bool,
     iterations: Option<u64>,
     seed: Option<u64>,
@@ -168,7 +191,20 @@ fn train(
         if run.config().exists() {
             bail!("{}: a run is already there; pass --resume to continue it or choose another --out", out.display());
         }
-        let mut config = (p.build)(scale);
+        let mut config = match &config_file {
+            None => (p.build)(scale),
+            Some(f) => {
+                let text =
+                    std::fs::read_to_string(f).with_context(|| format!("--config {}: cannot read", f.display()))?;
+                toml::from_str(&text).with_context(|| {
+                    format!(
+                        "--config {}: not a training configuration (see evtrain presets --show {})",
+                        f.display(),
+                        p.name
+                    )
+                })?
+            }
+        };
         if let Some(n) = iterations {
             config.iterations = n;
         }

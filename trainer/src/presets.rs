@@ -69,27 +69,27 @@ pub fn names() -> Vec<&'static str> {
     PRESETS.iter().map(|p| p.name).collect()
 }
 
+/// The reference MLPs of one level: PE with 10 / 4 frequencies, density MLP with one hidden
+/// layer of `width`, `features` passed on, colour MLP with two hidden layers of `width`, no
+/// biases.
+fn reference_mlps(width: usize, features: usize) -> FieldShape {
+    FieldShape {
+        pe_pos: 10,
+        pe_dir: 4,
+        density_hidden: vec![width],
+        features,
+        colour_hidden: vec![width, width],
+        bias: false,
+    }
+}
+
 /// The reference model.
 pub fn paper_model() -> ModelConfig {
     ModelConfig {
         coarse_volume: VolumeShape { res: 256, comps: [64, 16, 16], features: 32 },
         fine_volume: Some(VolumeShape { res: 512, comps: [64, 16, 16], features: 32 }),
-        coarse: FieldShape {
-            pe_pos: 10,
-            pe_dir: 4,
-            density_hidden: vec![64],
-            features: 15,
-            colour_hidden: vec![64, 64],
-            bias: false,
-        },
-        fine: Some(FieldShape {
-            pe_pos: 10,
-            pe_dir: 4,
-            density_hidden: vec![256],
-            features: 128,
-            colour_hidden: vec![256, 256],
-            bias: false,
-        }),
+        coarse: reference_mlps(64, 15),
+        fine: Some(reference_mlps(256, 128)),
         n_coarse: 64,
         n_fine: 64,
         density_noise: 1.0,

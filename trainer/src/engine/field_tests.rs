@@ -20,7 +20,7 @@ impl Lcg {
 
 fn tiny_field(bias: bool, two_volumes: bool) -> (Field, Layout, Vec<f64>) {
     let mut layout = Layout::default();
-    let a = VmVolume::new(&mut layout, "a", [5, 6, 7], [2, 3, 2], 4, ([-1.0; 3], [1.0; 3]));
+    let a = VmVolume::new(&mut layout, "a", [5, 6, 7], [18, 3, 17], 4, ([-1.0; 3], [1.0; 3]));
     let mut volumes = vec![a];
     if two_volumes {
         volumes.push(VmVolume::new(&mut layout, "b", [4, 4, 5], [1, 2, 2], 3, ([-1.2, -0.9, -1.0], [1.1, 1.3, 1.0])));

@@ -219,6 +219,26 @@ fn a_resumed_run_repeats_the_uninterrupted_one_bit_for_bit() {
 }
 
 #[test]
+fn a_stop_request_ends_the_run_after_the_step_with_a_checkpoint() {
+    // What Ctrl-C does in evtrain: set the flag; the step in progress finishes, a checkpoint of
+    // it is written (although checkpoint_every is far away), and the run can go on from it.
+    let mut cfg = small(nerf(), 6);
+    cfg.checkpoint_every = 1000;
+    let run = run_dir("stop");
+    let stop = std::sync::atomic::AtomicBool::new(true);
+    let mut t = Trainer::new(dataset(), cfg.clone(), None).unwrap();
+    let rows = t.train(&run, &TrainOptions { stop: Some(&stop), ..TrainOptions::default() }).unwrap();
+    assert_eq!(rows.len(), 1);
+    let layout = Model::new(&cfg.model).layout;
+    let ck = Checkpoint::load(&layout, &run.checkpoint()).unwrap();
+    assert_eq!(ck.step, 1);
+    let mut t = Trainer::new(dataset(), cfg, Some(ck)).unwrap();
+    let rows = t.train(&run, &TrainOptions::default()).unwrap();
+    assert_eq!(rows.iter().map(|r| r.step).collect::<Vec<_>>(), (2..=6).collect::<Vec<_>>());
+    assert_eq!(Checkpoint::load(&layout, &run.checkpoint()).unwrap().step, 6);
+}
+
+#[test]
 fn runs_repeat_for_a_seed_and_differ_between_seeds() {
     let cfg = small(nerf(), 4);
     let (a, b) = (run_dir("seed-a"), run_dir("seed-b"));

@@ -6,10 +6,12 @@
 //! - [`engine`]: the CPU radiance-field engine (kernels, gradients, optimiser).
 //! - [`config`]: a run's settings; [`presets`]: the registry of named methods.
 //! - [`train`]: the training loop; [`checkpoint`]: saved states; [`eval`]: test-view scores.
+//! - [`blur`]: blur models (so far the se(3) exponential map of the rigid blurring kernel).
 //! - [`metrics`]: PSNR and SSIM of images as scikit-image computes them ([`metrics::ImageRef`]).
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod blur;
 pub mod checkpoint;
 pub mod config;
 pub mod data;

@@ -1,4 +1,6 @@
 //! Blur models (issue 7 onwards). What lives where:
+//! - [`rigid`]: DP-NeRF's rigid blurring kernel heads (per-image twists and blending weights).
 //! - [`se3`]: the exponential map of se(3) twists to rigid motions, and its backward.
 
+pub mod rigid;
 pub mod se3;

@@ -70,10 +70,69 @@ pub fn ndc_ray(width: u32, height: u32, focal: f64, near: f64, ray: &Ray) -> Ray
     Ray { origin, direction }
 }
 
+/// Backward of [`ndc_ray`]: dL/d(world origin) and dL/d(world direction) from dL/d(NDC
+/// origin) and dL/d(NDC direction). With `s = o + t d` on the near plane (`s_z = -near`), the
+/// NDC ray is `(-a_x s_x / n, -a_y s_y / n, -1)`, `(a_x (d_x/d_z + s_x/n), a_y (d_y/d_z + s_y/n), 2)`,
+/// so its z components carry no gradient.
+pub fn ndc_ray_backward(
+    width: u32,
+    height: u32,
+    focal: f64,
+    near: f64,
+    ray: &Ray,
+    d_origin: DVec3,
+    d_direction: DVec3,
+) -> (DVec3, DVec3) {
+    let (o, d) = (ray.origin, ray.direction);
+    let t = -(near + o.z) / d.z;
+    let ax = -focal / (0.5 * width as f64);
+    let ay = -focal / (0.5 * height as f64);
+    // dL/ds for the near-plane point s.
+    let g_sx = ax / near * (d_direction.x - d_origin.x);
+    let g_sy = ay / near * (d_direction.y - d_origin.y);
+    let (rx, ry) = (d.x / d.z, d.y / d.z);
+    // s = o + t d with t = -(near + o_z) / d_z: ds/do_z = -d / d_z, ds/dd_z = -t d / d_z.
+    let d_o = DVec3::new(g_sx, g_sy, -(g_sx * rx + g_sy * ry));
+    let d_d = DVec3::new(
+        g_sx * t + ax * d_direction.x / d.z,
+        g_sy * t + ay * d_direction.y / d.z,
+        -t * (g_sx * rx + g_sy * ry) - (ax * d_direction.x * rx + ay * d_direction.y * ry) / d.z,
+    );
+    (d_o, d_d)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use glam::DQuat;
+
+    #[test]
+    fn ndc_backward_matches_finite_differences() {
+        let ray = Ray { origin: DVec3::new(0.3, -0.2, 0.4), direction: DVec3::new(0.2, 0.15, -1.1) };
+        let (go, gd) = (DVec3::new(0.7, -0.4, 0.9), DVec3::new(-0.3, 0.8, 0.5));
+        let loss = |r: &Ray| {
+            let n = ndc_ray(K.width, K.height, K.focal, 1.0, r);
+            n.origin.dot(go) + n.direction.dot(gd)
+        };
+        let (d_o, d_d) = ndc_ray_backward(K.width, K.height, K.focal, 1.0, &ray, go, gd);
+        let h = 1e-6;
+        for a in 0..3 {
+            for (which, an) in [("origin", d_o[a]), ("direction", d_d[a])] {
+                let (mut p, mut m) = (ray, ray);
+                let e = DVec3::from_array(std::array::from_fn(|i| if i == a { h } else { 0.0 }));
+                if which == "origin" {
+                    p.origin += e;
+                    m.origin -= e;
+                } else {
+                    p.direction += e;
+                    m.direction -= e;
+                }
+                let fd = (loss(&p) - loss(&m)) / (2.0 * h);
+                assert!((fd - an).abs() < 1e-6 * (1.0 + fd.abs()), "{which}[{a}]: fd {fd} analytic {an}");
+                assert!(an.abs() > 1e-6, "{which}[{a}] is zero");
+            }
+        }
+    }
 
     const K: Intrinsics = Intrinsics { width: 40, height: 30, focal: 50.0 };
 

@@ -9,25 +9,10 @@ use std::path::Path;
 use glam::{DMat3, DVec3};
 
 use super::check::{ImageTimes, Lines, TestViewPolicy};
-use crate::npy::{read_npy, read_npz, DType, NpyArray, NpyData};
+use crate::npy::{read_npy, read_npz, DType, NpyArray};
 
 /// The fix for an unreadable array file.
 const REWRITE: &str = "write it again with numpy (np.save / np.savez) or evblur's writer";
-
-/// Every element as f64 (bool: 0 or 1).
-fn to_f64(data: &NpyData) -> Vec<f64> {
-    match data {
-        NpyData::F64(v) => v.clone(),
-        NpyData::F32(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::I64(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::U64(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::I32(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::U16(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::U8(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::I8(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::Bool(v) => v.iter().map(|&x| x as u8 as f64).collect(),
-    }
-}
 
 /// The numpy name of a dtype.
 fn dtype_name(d: DType) -> &'static str {
@@ -72,7 +57,7 @@ fn f64_array(lines: &mut Lines, file: &str, field: &str, array: &NpyArray, want:
     // A wrong length still leaves the values readable; a wrong rank or row width does not.
     let rows_readable = array.shape().len() == want.len()
         && array.shape().iter().zip(want).skip(1).all(|(&d, w)| w.is_none_or(|w| d == w));
-    rows_readable.then(|| to_f64(array.data()))
+    rows_readable.then(|| array.data().to_f64())
 }
 
 /// Up to 5 indices, for messages.

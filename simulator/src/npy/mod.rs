@@ -141,6 +141,21 @@ macro_rules! from_vec {
 from_vec!(f64 => F64, f32 => F32, i64 => I64, u64 => U64, i32 => I32, u16 => U16, u8 => U8, i8 => I8, bool => Bool);
 
 impl NpyData {
+    /// Every element as f64 (bool: 0 or 1).
+    pub fn to_f64(&self) -> Vec<f64> {
+        match self {
+            NpyData::F64(v) => v.clone(),
+            NpyData::F32(v) => v.iter().map(|&x| x as f64).collect(),
+            NpyData::I64(v) => v.iter().map(|&x| x as f64).collect(),
+            NpyData::U64(v) => v.iter().map(|&x| x as f64).collect(),
+            NpyData::I32(v) => v.iter().map(|&x| x as f64).collect(),
+            NpyData::U16(v) => v.iter().map(|&x| x as f64).collect(),
+            NpyData::U8(v) => v.iter().map(|&x| x as f64).collect(),
+            NpyData::I8(v) => v.iter().map(|&x| x as f64).collect(),
+            NpyData::Bool(v) => v.iter().map(|&x| x as u8 as f64).collect(),
+        }
+    }
+
     /// Its dtype.
     pub fn dtype(&self) -> DType {
         match self {

@@ -19,20 +19,45 @@ pub struct Key {
 
 /// The `[trajectory]` table (with its `[[trajectory.keys]]`) for `keys`, in order.
 pub fn keys_toml(keys: &[Key]) -> String {
-    let mut s = String::from("[trajectory]\ntype = \"keys\"\n");
+    format!("[trajectory]\ntype = \"keys\"\n{}", key_tables(keys, 3))
+}
+
+/// Only the `[[trajectory.keys]]` tables of `keys`, each after a blank line, times printed with
+/// `t_decimals` digits and positions with 3.
+pub fn key_tables(keys: &[Key], t_decimals: usize) -> String {
+    let mut s = String::new();
     let v = |p: [f64; 3]| format!("[{:.3}, {:.3}, {:.3}]", p[0], p[1], p[2]);
     for k in keys {
         // writing into a String cannot fail
         let _ = write!(
             s,
-            "\n[[trajectory.keys]]\nt = {:.3}\nposition = {}\nlook_at = {}\n",
+            "\n[[trajectory.keys]]\nt = {:.d$}\nposition = {}\nlook_at = {}\n",
             k.t,
             v(k.position),
-            v(k.look_at)
+            v(k.look_at),
+            d = t_decimals
         );
     }
     s
 }
+
+/// Keys from (time, eye, look-at) triples in single precision.
+pub fn keys_from(path: &[(f64, glam::Vec3, glam::Vec3)]) -> Vec<Key> {
+    let d = |v: glam::Vec3| [v.x as f64, v.y as f64, v.z as f64];
+    path.iter().map(|&(t, p, l)| Key { t, position: d(p), look_at: d(l) }).collect()
+}
+
+/// The `[dataset]` and `[events]` tables of the outdoor benchmark scenes (tanabata, trolley).
+pub const OUTDOOR_DATASET_AND_EVENTS: &str = "[dataset]
+# the paper's defaults: 600x400, 1000 FPS, 40 ms exposure, 16 spp; every 8th view sharp
+views = 30
+# direct light plus one bounce: outdoors it looks the same as 5 and renders ~30 % faster
+max_depth = 3
+
+[events]
+c_pos = 0.2
+c_neg = 0.2
+";
 
 /// The `[camera]` and constant `[environment]` tables shared by the generated scene files:
 /// camera at `eye` looking at `target` (printed with `decimals` digits), vertical FOV

@@ -444,13 +444,7 @@ fn keys() -> Vec<(f64, Vec3, Vec3)> {
 
 /// The dataset description of `tanabata`.
 fn toml_text() -> String {
-    let mut keys_text = String::new();
-    for (t, p, l) in keys() {
-        keys_text.push_str(&format!(
-            "\n[[trajectory.keys]]\nt = {t:.2}\nposition = [{:.3}, {:.3}, {:.3}]\nlook_at = [{:.3}, {:.3}, {:.3}]\n",
-            p.x, p.y, p.z, l.x, l.y, l.z
-        ));
-    }
+    let keys_text = super::camera_path::key_tables(&super::camera_path::keys_from(&keys()), 2);
     format!(
         r#"# tanabata: a summer-festival street at dusk, written by `evsim scene generate --only tanabata`
 # (simulator/src/scenegen/tanabata.rs); regenerate rather than edit the glTF.
@@ -461,16 +455,8 @@ scene = "scene.gltf"
 [trajectory]
 type = "keys"
 {keys_text}
-[dataset]
-# the paper's defaults: 600x400, 1000 FPS, 40 ms exposure, 16 spp; every 8th view sharp
-views = 30
-# direct light plus one bounce: outdoors it looks the same as 5 and renders ~30 % faster
-max_depth = 3
-
-[events]
-c_pos = 0.2
-c_neg = 0.2
-"#,
+{tail}"#,
+        tail = super::camera_path::OUTDOOR_DATASET_AND_EVENTS,
         camera_and_sky = super::camera_path::camera_and_sky(EYE, TARGET, FOV_Y_DEG, 1, [0.32, 0.36, 0.5]),
     )
 }

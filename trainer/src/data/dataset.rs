@@ -12,7 +12,7 @@ use simulator::npy::{read_npy, read_npz, NpyArray};
 use simulator::trajectory::Pose;
 
 use super::error::LoadError;
-use super::events::{to_f64, EvMap, Events};
+use super::events::{EvMap, Events};
 use super::image::RgbImage;
 use super::rays::{Intrinsics, Ray};
 use super::trajectory::DenseTrajectory;
@@ -122,7 +122,7 @@ fn read_rows(dir: &Path, file: &str) -> Result<Vec<LlffRow>, LoadError> {
     let [_, 17] = a.shape() else {
         return Err(LoadError::invalid(file, "shape", format!("{:?}, expected (N, 17)", a.shape()), "write LLFF rows"));
     };
-    Ok(to_f64(a.data()).chunks_exact(17).map(LlffRow::from_row).collect())
+    Ok(a.data().to_f64().chunks_exact(17).map(LlffRow::from_row).collect())
 }
 
 /// A named 1-D array of `npz` as f64, of length `n`.
@@ -133,7 +133,7 @@ fn vector(arrays: &[(String, NpyArray)], file: &str, name: &str, n: usize) -> Re
     if a.shape() != [n] {
         return Err(LoadError::invalid(file, name, format!("shape {:?}, expected ({n},)", a.shape()), "one per image"));
     }
-    Ok(to_f64(a.data()))
+    Ok(a.data().to_f64())
 }
 
 impl Dataset {
@@ -217,7 +217,7 @@ impl Dataset {
         let dense = read_rows(dir, ALL_POSES)?;
         let times =
             read_npy(&dir.join(ALL_TIMES)).map_err(|e| LoadError::unreadable(ALL_TIMES, e, "write it again"))?;
-        let times = to_f64(times.data());
+        let times = times.data().to_f64();
         let poses: Vec<Pose> = dense.iter().map(|r| transform.apply(&r.pose)).collect();
         let trajectory = DenseTrajectory::new(times, &poses).ok_or_else(|| {
             LoadError::invalid(

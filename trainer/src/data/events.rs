@@ -17,7 +17,7 @@ use std::path::Path;
 use rust_hdf5::H5File;
 use simulator::dataset::check::EventsUnit;
 use simulator::dataset::EventColumnReader;
-use simulator::npy::{read_npz, NpyData};
+use simulator::npy::read_npz;
 
 use super::error::LoadError;
 
@@ -194,24 +194,9 @@ impl EvMap {
                     fix,
                 ));
             }
-            Ok(to_f64(a.data()).into_iter().map(|v| v as f32).collect())
+            Ok(a.data().to_f64().into_iter().map(|v| v as f32).collect())
         };
         Ok(Some(EvMap { width, height, inv_mapx: get("inv_mapx")?, inv_mapy: get("inv_mapy")? }))
-    }
-}
-
-/// Any numeric array as f64.
-pub(crate) fn to_f64(d: &NpyData) -> Vec<f64> {
-    match d {
-        NpyData::F64(v) => v.clone(),
-        NpyData::F32(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::I64(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::U64(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::I32(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::U16(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::U8(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::I8(v) => v.iter().map(|&x| x as f64).collect(),
-        NpyData::Bool(v) => v.iter().map(|&x| x as u8 as f64).collect(),
     }
 }
 

@@ -131,21 +131,33 @@ impl LlffCamera {
         if let Some(i) = row.iter().position(|v| !v.is_finite()) {
             return Err(LlffError::Invalid { field: "row", message: format!("entry {i} is {}", row[i]) });
         }
+        check_pure_rotation(&Self::rotation_of(row))?;
+        let cam = Self::from_row_unchecked(row);
+        cam.validate()?;
+        Ok(cam)
+    }
+
+    /// The rotation columns of a row as the reference loader reads them, `[c1, -c0, c2]`:
+    /// (right, up, backward) = our (+X, +Y, +Z).
+    fn rotation_of(row: &[f64; 17]) -> DMat3 {
         let col = |j: usize| DVec3::new(row[j], row[5 + j], row[10 + j]);
-        let (down, right, backward) = (col(0), col(1), col(2));
-        // the reference loader's [c1, -c0, c2]: (right, up, backward) = our (+X, +Y, +Z)
-        let m = DMat3::from_cols(right, -down, backward);
-        check_pure_rotation(&m)?;
-        let cam = LlffCamera {
-            pose: Pose { rotation: DQuat::from_mat3(&m).normalize(), position: col(3) },
+        DMat3::from_cols(col(1), -col(0), col(2))
+    }
+
+    /// Read a row without any check (for readers that checked the file already, with their own
+    /// tolerance); the rotation is the nearest unit quaternion of the 3x3 part.
+    pub fn from_row_unchecked(row: &[f64; 17]) -> LlffCamera {
+        LlffCamera {
+            pose: Pose {
+                rotation: DQuat::from_mat3(&Self::rotation_of(row)).normalize(),
+                position: DVec3::new(row[3], row[8], row[13]),
+            },
             height: row[4],
             width: row[9],
             focal: row[14],
             near: row[15],
             far: row[16],
-        };
-        cam.validate()?;
-        Ok(cam)
+        }
     }
 }
 

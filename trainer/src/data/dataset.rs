@@ -122,7 +122,11 @@ fn read_rows(dir: &Path, file: &str) -> Result<Vec<LlffRow>, LoadError> {
     let [_, 17] = a.shape() else {
         return Err(LoadError::invalid(file, "shape", format!("{:?}, expected (N, 17)", a.shape()), "write LLFF rows"));
     };
-    Ok(a.data().to_f64().chunks_exact(17).map(LlffRow::from_row).collect())
+    Ok(a.data()
+        .to_f64()
+        .chunks_exact(17)
+        .map(|r| LlffRow::from_row_unchecked(r.try_into().expect("17 values")))
+        .collect())
 }
 
 /// A named 1-D array of `npz` as f64, of length `n`.

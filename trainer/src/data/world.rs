@@ -14,41 +14,14 @@
 //! The dense trajectory is mapped by the same `sc` and `c2w_avg` (those of the image poses).
 
 use glam::{DMat3, DQuat, DVec3};
+use simulator::trajectory::llff::LlffCamera;
 use simulator::trajectory::Pose;
 
-/// One converted LLFF row, before scaling: pose (right, up, backward), intrinsics and bounds.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LlffRow {
-    /// Camera-to-world pose in the file's world.
-    pub pose: Pose,
-    /// Image height (pixels).
-    pub height: f64,
-    /// Image width (pixels).
-    pub width: f64,
-    /// Focal length (pixels).
-    pub focal: f64,
-    /// Near bound (file units).
-    pub near: f64,
-    /// Far bound (file units).
-    pub far: f64,
-}
-
-impl LlffRow {
-    /// Convert a 17-value row with `[c1, -c0, c2]` (no rotation check: the schema check did it,
-    /// with the tolerance the public float32-derived files need).
-    pub fn from_row(row: &[f64]) -> LlffRow {
-        let col = |j: usize| DVec3::new(row[j], row[5 + j], row[10 + j]);
-        let m = DMat3::from_cols(col(1), -col(0), col(2));
-        LlffRow {
-            pose: Pose { rotation: DQuat::from_mat3(&m).normalize(), position: col(3) },
-            height: row[4],
-            width: row[9],
-            focal: row[14],
-            near: row[15],
-            far: row[16],
-        }
-    }
-}
+/// One LLFF row, before scaling: the simulator's [`LlffCamera`] (pose as right, up, backward,
+/// intrinsics, bounds in file units), read with
+/// [`LlffCamera::from_row_unchecked`] (the schema check tested the rotations already, with the
+/// tolerance the public float32-derived files need).
+pub type LlffRow = LlffCamera;
 
 /// The similarity from the file's world to the loader's: `x' = A^T (sc x - c)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -156,7 +129,7 @@ mod tests {
             0.0, 0.0, 1.0, 3.0, 40.0,
             0.5, 10.0,
         ];
-        let row = LlffRow::from_row(&r);
+        let row = LlffRow::from_row_unchecked(&r);
         assert!(row.pose.rotation.abs_diff_eq(DQuat::IDENTITY, 1e-12), "{:?}", row.pose.rotation);
         assert_eq!(row.pose.position, DVec3::new(1.0, 2.0, 3.0));
         assert_eq!((row.height, row.width, row.focal, row.near, row.far), (32.0, 48.0, 40.0, 0.5, 10.0));

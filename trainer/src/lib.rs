@@ -7,6 +7,7 @@
 //! - [`config`]: a run's settings; [`presets`]: the registry of named methods.
 //! - [`train`]: the training loop; [`checkpoint`]: saved states; [`eval`]: test-view scores.
 //! - [`blur`]: blur models (so far the se(3) exponential map of the rigid blurring kernel).
+//! - [`events`]: event supervision: the eCRF and the EDI prior.
 //! - [`metrics`]: PSNR and SSIM of images as scikit-image computes them ([`metrics::ImageRef`]).
 #![warn(missing_docs)]
 
@@ -18,6 +19,7 @@ pub mod data;
 pub mod engine;
 pub mod error;
 pub mod eval;
+pub mod events;
 pub mod metrics;
 pub mod presets;
 pub mod train;

@@ -379,7 +379,7 @@ pub fn image_step(
                     d.push(grad);
                 }
             }
-            renderer.backward(model, p, g, &chunk, &dc, &df);
+            renderer.backward(model, p, g, &chunk, &dc, &df, None);
         }
         sums
     });

@@ -8,7 +8,7 @@
 //! `rays x samples` rows. Everything lives in a reusable [`Renderer`]: no allocation per chunk
 //! once it has grown to the chunk size.
 
-use super::field::FieldWorkspace;
+use super::field::{Field, FieldWorkspace};
 use super::model::Model;
 use super::real::Real;
 use super::rng::Rng;
@@ -42,6 +42,11 @@ struct Pass<R> {
     out: Vec<[R; 3]>,
     d_sigma: Vec<R>,
     d_rgb: Vec<[R; 3]>,
+    /// dL/d position and dL/d view direction per sample (only when ray gradients are asked for).
+    d_pos: Vec<[R; 3]>,
+    d_dir: Vec<[R; 3]>,
+    /// dL/d|d| per ray from volume rendering (the sample spacing scales with |d|).
+    d_norm: Vec<R>,
     ws: FieldWorkspace<R>,
 }
 
@@ -59,6 +64,7 @@ impl<R: Real> Pass<R> {
         self.out.resize(rays, [R::zero(); 3]);
         self.d_sigma.resize(n, R::zero());
         self.d_rgb.resize(n, [R::zero(); 3]);
+        self.d_norm.resize(rays, R::zero());
     }
 
     /// Positions o + t d and view directions of every sample, from `t`.
@@ -103,7 +109,7 @@ impl<R: Real> Pass<R> {
         let (mut ds, mut dr) = (std::mem::take(&mut self.d_sigma), std::mem::take(&mut self.d_rgb));
         for r in 0..rays {
             let range = r * self.s..(r + 1) * self.s;
-            volume::render_backward(
+            self.d_norm[r] = volume::render_backward(
                 &self.samples(r, norm(chunk.dirs[r]), train),
                 &RenderGrad::rgb(d_out[r]),
                 &mut ds[range.clone()],
@@ -112,6 +118,60 @@ impl<R: Real> Pass<R> {
         }
         self.d_sigma = ds;
         self.d_rgb = dr;
+    }
+
+    /// The field's backward; with `with_rays`, also the per-sample position and direction
+    /// gradients.
+    fn field_backward(&mut self, field: &Field, params: &[R], grads: &mut [R], with_rays: bool) {
+        if with_rays {
+            let n = self.pos.len();
+            self.d_pos.resize(n, [R::zero(); 3]);
+            self.d_dir.resize(n, [R::zero(); 3]);
+            let (dp, dd) = (&mut self.d_pos[..], &mut self.d_dir[..]);
+            field.backward(params, grads, &mut self.ws, &self.pos, &self.d_sigma, &self.d_rgb, Some(dp), Some(dd));
+        } else {
+            field.backward(params, grads, &mut self.ws, &self.pos, &self.d_sigma, &self.d_rgb, None, None);
+        }
+    }
+
+    /// Adds this pass's ray gradients: position x = o + t d gives dL/do = sum dL/dx and
+    /// dL/dd = sum t dL/dx, plus the |d| term of the spacing; the view direction's gradient is
+    /// the sum over the samples.
+    fn add_ray_grads(&self, chunk: &RayChunk<R>, rays: usize, out: &mut [RayGrad<R>]) {
+        for (r, g) in out.iter_mut().enumerate().take(rays) {
+            let d = chunk.dirs[r];
+            let n = norm(d);
+            for k in 0..self.s {
+                let i = r * self.s + k;
+                let (dp, t) = (self.d_pos[i], self.t[i]);
+                for a in 0..3 {
+                    g.origin[a] += dp[a];
+                    g.dir[a] += t * dp[a];
+                    g.viewdir[a] += self.d_dir[i][a];
+                }
+            }
+            for a in 0..3 {
+                g.dir[a] += self.d_norm[r] * d[a] / n;
+            }
+        }
+    }
+}
+
+/// dL/d of a ray's inputs: NDC origin and direction, and the world view direction.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RayGrad<R> {
+    /// dL/d origin (NDC).
+    pub origin: [R; 3],
+    /// dL/d direction (NDC).
+    pub dir: [R; 3],
+    /// dL/d view direction (as given to the colour MLP).
+    pub viewdir: [R; 3],
+}
+
+impl<R: Real> RayGrad<R> {
+    /// All zero.
+    pub fn zero() -> RayGrad<R> {
+        RayGrad { origin: [R::zero(); 3], dir: [R::zero(); 3], viewdir: [R::zero(); 3] }
     }
 }
 
@@ -193,15 +253,17 @@ impl<R: Real> Renderer<R> {
         f.render(chunk, rays, self.train);
     }
 
-    /// Re-runs the last forward with other `params` but the same sample depths and noise
-    /// (sampling is not differentiated; the finite-difference checks hold it fixed).
+    /// Re-runs the last forward with other `params` or rays but the same sample depths and
+    /// noise (sampling is not differentiated; the finite-difference checks hold it fixed).
     pub fn replay(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>) {
         let rays = self.rays;
         let c = &mut self.coarse;
+        c.place(chunk, rays);
         model.coarse.forward(params, &mut c.ws, &c.pos, &c.dir, &mut c.sigma, &mut c.rgb);
         c.render(chunk, rays, self.train);
         if self.fine_pass {
             let f = &mut self.fine;
+            f.place(chunk, rays);
             model.fine_field().forward(params, &mut f.ws, &f.pos, &f.dir, &mut f.sigma, &mut f.rgb);
             f.render(chunk, rays, self.train);
         }
@@ -223,7 +285,10 @@ impl<R: Real> Renderer<R> {
     }
 
     /// Backward of the last [`forward`](Self::forward): accumulates the parameter gradients of
-    /// a loss with dL/dC `d_coarse` and `d_fine` (one per ray) into `grads`.
+    /// a loss with dL/dC `d_coarse` and `d_fine` (one per ray) into `grads`. With `d_rays`,
+    /// also writes each ray's input gradients (for blur models that move rays); sample depths
+    /// are held fixed (sampling is not differentiated).
+    #[allow(clippy::too_many_arguments)]
     pub fn backward(
         &mut self,
         model: &Model,
@@ -232,22 +297,36 @@ impl<R: Real> Renderer<R> {
         chunk: &RayChunk<R>,
         d_coarse: &[[R; 3]],
         d_fine: &[[R; 3]],
+        mut d_rays: Option<&mut [RayGrad<R>]>,
     ) {
         let rays = self.rays;
+        let with_rays = d_rays.is_some();
+        if let Some(out) = d_rays.as_deref_mut() {
+            out[..rays].fill(RayGrad::zero());
+        }
         if !self.fine_pass {
             // One pass: both losses act on the coarse colour.
             let d: Vec<[R; 3]> =
                 d_coarse.iter().zip(d_fine).map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]).collect();
             let c = &mut self.coarse;
             c.render_backward(chunk, rays, &d, self.train);
-            model.coarse.backward(params, grads, &mut c.ws, &c.pos, &c.d_sigma, &c.d_rgb, None, None);
+            c.field_backward(&model.coarse, params, grads, with_rays);
+            if let Some(out) = d_rays {
+                c.add_ray_grads(chunk, rays, out);
+            }
             return;
         }
         let f = &mut self.fine;
         f.render_backward(chunk, rays, d_fine, self.train);
-        model.fine_field().backward(params, grads, &mut f.ws, &f.pos, &f.d_sigma, &f.d_rgb, None, None);
+        f.field_backward(model.fine_field(), params, grads, with_rays);
+        if let Some(out) = d_rays.as_deref_mut() {
+            f.add_ray_grads(chunk, rays, out);
+        }
         let c = &mut self.coarse;
         c.render_backward(chunk, rays, d_coarse, self.train);
-        model.coarse.backward(params, grads, &mut c.ws, &c.pos, &c.d_sigma, &c.d_rgb, None, None);
+        c.field_backward(&model.coarse, params, grads, with_rays);
+        if let Some(out) = d_rays {
+            c.add_ray_grads(chunk, rays, out);
+        }
     }
 }

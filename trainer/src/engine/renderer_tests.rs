@@ -4,7 +4,7 @@
 
 use super::field::FieldShape;
 use super::model::{Model, ModelConfig, VolumeShape};
-use super::renderer::{RayChunk, Renderer};
+use super::renderer::{RayChunk, RayGrad, Renderer};
 use super::rng::Rng;
 
 fn tiny_config(two_levels: bool) -> ModelConfig {
@@ -57,7 +57,8 @@ fn check(two_levels: bool) {
         dot(r.coarse(), &wc) + dot(r.fine(), &wf)
     };
     let mut grads = model.layout.zeros::<f64>();
-    renderer.backward(&model, &params, &mut grads, &chunk, &wc, &wf);
+    let mut d_rays = vec![RayGrad::zero(); 3];
+    renderer.backward(&model, &params, &mut grads, &chunk, &wc, &wf, Some(&mut d_rays));
     let h = 1e-6;
     let mut replay = renderer.clone();
     let mut checked = 0;
@@ -82,6 +83,27 @@ fn check(two_levels: bool) {
     // Every tensor of the layout is reached by the loss.
     for t in &model.layout.tensors {
         assert!(grads[t.range.clone()].iter().any(|g| g.abs() > 1e-9), "{} receives no gradient", t.name);
+    }
+    // The rays' inputs (what a blur kernel moves), samples held at the same t.
+    let mut replay = renderer.clone();
+    for r in 0..3 {
+        for (which, a) in (0..3).flat_map(|w| (0..3).map(move |a| (w, a))) {
+            let eval = |delta: f64, replay: &mut Renderer<f64>| {
+                let (mut o, mut d, mut v) = (origins, dirs, viewdirs);
+                [&mut o, &mut d, &mut v][which][r][a] += delta;
+                replay.replay(&model, &params, &RayChunk { origins: &o, dirs: &d, viewdirs: &v });
+                loss(replay)
+            };
+            let fd = (eval(h, &mut replay) - eval(-h, &mut replay)) / (2.0 * h);
+            let g = &d_rays[r];
+            let an = [g.origin, g.dir, g.viewdir][which][a];
+            let name = ["origin", "dir", "viewdir"][which];
+            assert!(
+                (fd - an).abs() <= 1e-6 * (1.0 + fd.abs().max(an.abs())),
+                "ray {r} {name}[{a}]: finite difference {fd}, analytic {an}"
+            );
+            assert!(an.abs() > 1e-8, "ray {r} {name}[{a}] has no gradient");
+        }
     }
 }
 

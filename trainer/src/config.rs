@@ -1,8 +1,11 @@
 //! Training configuration: everything a run needs besides the dataset, as one serde struct that
 //! a preset builds and a run folder records (`config.toml`). Unknown keys are rejected.
 
+use crate::blur::rigid::RigidConfig;
 use crate::engine::adam::AdamConfig;
 use crate::engine::model::ModelConfig;
+use crate::events::ecrf::EcrfConfig;
+use crate::events::edi::EdiConfig;
 
 /// Which images supervise the colour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -41,6 +44,68 @@ pub struct TrainConfig {
     pub eval_every: u64,
     /// Worker threads (0: all cores). Results are bit-reproducible for a given count.
     pub threads: usize,
+    /// The blur model (`None`: one plain ray per pixel).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blur: Option<BlurConfig>,
+    /// The event loss (`None`: images only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub events: Option<EventLossConfig>,
+    /// The learnable event camera response (`None`: the identity).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ecrf: Option<EcrfConfig>,
+    /// The event double integral prior (`None`: off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edi: Option<EdiConfig>,
+}
+
+/// The rigid blurring kernel and when it starts.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BlurConfig {
+    /// The kernel's shape.
+    pub kernel: RigidConfig,
+    /// First iteration that renders the warped rays (reference: 1200; before it, one plain ray).
+    pub start: u64,
+}
+
+/// The event loss, event by event (module `trainer::method`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EventLossConfig {
+    /// Events per iteration (reference synthetic: 4096; each renders two rays).
+    pub batch: usize,
+    /// Weight of the loss (reference: 0.1).
+    pub weight: f64,
+    /// Training contrast thresholds (ON, OFF) in log intensity; `None`: the dataset's
+    /// (`dataset.toml` `[event_model]`), else the reference 0.2. A value different from the
+    /// simulation's is the threshold-mismatch study.
+    pub threshold: Option<[f64; 2]>,
+    /// Offset in `log(L + eps)`; `None`: the dataset's `log_eps`, else the reference 1e-5.
+    pub log_eps: Option<f64>,
+    /// Luma weights of monochrome events; `None`: the dataset's sensor (ours: Rec.709), else
+    /// the reference BT.601 (0.299, 0.587, 0.114).
+    pub luma: Option<[f64; 3]>,
+    /// Colour events (L_ev-color): each event sees its RGGB Bayer channel, weighted R 0.4,
+    /// G 0.2, B 0.4, instead of luma.
+    pub colour: bool,
+    /// Supervise only pairs of events inside one training view's exposure (E2NeRF-style)
+    /// instead of every pair (the reference).
+    pub inside_exposures: bool,
+}
+
+impl EventLossConfig {
+    /// The reference synthetic-data settings (dataset-derived values left to resolve).
+    pub fn reference() -> EventLossConfig {
+        EventLossConfig {
+            batch: 4096,
+            weight: 0.1,
+            threshold: None,
+            log_eps: None,
+            luma: None,
+            colour: false,
+            inside_exposures: false,
+        }
+    }
 }
 
 impl TrainConfig {
@@ -84,6 +149,139 @@ impl TrainConfig {
                 return Err(format!("{name} = {b}; it must be in [0, 1]"));
             }
         }
+        if let Some(b) = &self.blur {
+            if b.kernel.k == 0 || b.kernel.embedding == 0 || b.kernel.hidden == 0 {
+                return Err("blur.kernel: k, embedding and hidden must be >= 1".into());
+            }
+            if b.kernel.k + 1 > crate::method::MAX_RAYS {
+                return Err(format!(
+                    "blur.kernel.k = {}; at most {} warped rays",
+                    b.kernel.k,
+                    crate::method::MAX_RAYS - 1
+                ));
+            }
+            for (name, v) in
+                [("blur.kernel.twist_scale", b.kernel.twist_scale), ("blur.kernel.init_scale", b.kernel.init_scale)]
+            {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(format!("{name} = {v}; it must be a finite number >= 0"));
+                }
+            }
+        }
+        if let Some(e) = &self.events {
+            if e.batch == 0 {
+                return Err("events.batch = 0; it must be >= 1 (or drop [events] for images only)".into());
+            }
+            let mut checks = vec![("events.weight", e.weight, true)];
+            if let Some([on, off]) = e.threshold {
+                checks.extend([("events.threshold[0]", on, false), ("events.threshold[1]", off, false)]);
+            }
+            if let Some(eps) = e.log_eps {
+                checks.push(("events.log_eps", eps, false));
+            }
+            if let Some(l) = e.luma {
+                checks.extend(l.iter().map(|&v| ("events.luma", v, true)));
+            }
+            for (name, v, zero_ok) in checks {
+                if !(v.is_finite() && (v > 0.0 || (zero_ok && v == 0.0))) {
+                    return Err(format!(
+                        "{name} = {v}; it must be a finite number > 0{}",
+                        if zero_ok { " or 0" } else { "" }
+                    ));
+                }
+            }
+        }
+        if let Some(c) = &self.ecrf {
+            if c.hidden == 0 || c.layers == 0 || !(c.scale.is_finite() && c.scale >= 0.0) {
+                return Err("ecrf: hidden and layers must be >= 1 and scale a finite number >= 0".into());
+            }
+            if self.events.is_none() {
+                return Err("ecrf is set but [events] is not: the eCRF only acts on the event loss; add [events] or drop [ecrf]".into());
+            }
+        }
+        if let Some(d) = &self.edi {
+            d.validate()?;
+        }
         Ok(())
+    }
+}
+
+/// Applies `KEY=VALUE` overrides to a configuration: KEY is a dotted path into the TOML form
+/// (`evtrain presets --show NAME`), VALUE a TOML value (`0.3`, `true`, `[0.3, 0.3]`; a bare word
+/// is a string) or `none` to switch an optional part off (`ecrf=none`). Unknown keys and
+/// values of the wrong type are refused; the result is validated.
+pub fn apply_overrides(cfg: &TrainConfig, sets: &[String]) -> Result<TrainConfig, String> {
+    let mut root = toml::Value::try_from(cfg).map_err(|e| format!("cannot represent the configuration: {e}"))?;
+    for s in sets {
+        let Some((key, val)) = s.split_once('=') else {
+            return Err(format!("--set {s}: expected KEY=VALUE, e.g. events.colour=true or ecrf=none"));
+        };
+        let path: Vec<&str> = key.trim().split('.').collect();
+        let val = val.trim();
+        let value = if val == "none" {
+            None
+        } else {
+            let parsed: Option<toml::Value> =
+                toml::from_str::<toml::Table>(&format!("v = {val}")).ok().and_then(|t| t.get("v").cloned());
+            Some(parsed.unwrap_or_else(|| toml::Value::String(val.to_string())))
+        };
+        let (last, parents) = path.split_last().expect("split gives at least one part");
+        let mut table = root.as_table_mut().expect("a configuration is a table");
+        for (i, part) in parents.iter().enumerate() {
+            let here = path[..=i].join(".");
+            table = match table.get_mut(*part) {
+                Some(toml::Value::Table(t)) => t,
+                Some(_) => return Err(format!("--set {s}: `{here}` is a value, not a table")),
+                None => {
+                    return Err(format!(
+                        "--set {s}: `{here}` is not in this configuration (off in the preset, or misspelt); see evtrain presets --show NAME"
+                    ))
+                }
+            };
+        }
+        match value {
+            Some(v) => {
+                table.insert(last.to_string(), v);
+            }
+            None => {
+                if table.remove(*last).is_none() {
+                    return Err(format!("--set {s}: `{key}` is not set, nothing to switch off"));
+                }
+            }
+        }
+    }
+    let out: TrainConfig = root.try_into().map_err(|e| format!("--set: {e}"))?;
+    out.validate()?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::presets::{preset, Scale};
+
+    fn base() -> TrainConfig {
+        (preset("ev-deblurnerf").expect("preset").build)(Scale::Cpu)
+    }
+
+    #[test]
+    fn overrides_set_values_switch_parts_off_and_refuse_mistakes() {
+        let sets = |s: &[&str]| apply_overrides(&base(), &s.iter().map(|x| x.to_string()).collect::<Vec<_>>());
+        let c =
+            sets(&["events.colour=true", "events.threshold=[0.3, 0.25]", "ecrf=none", "model.explicit=false"]).unwrap();
+        let e = c.events.as_ref().unwrap();
+        assert!(e.colour && e.threshold == Some([0.3, 0.25]));
+        assert!(c.ecrf.is_none() && !c.model.explicit);
+        assert_eq!(sets(&["iterations=12"]).unwrap().iterations, 12);
+        for (bad, says) in [
+            (&["events.colur=true"][..], "colur"),
+            (&["ecrf=none", "ecrf.polarity=false"][..], "`ecrf` is not in this configuration"),
+            (&["iterations=many"][..], "iterations"),
+            (&["events.weight=-1"][..], "events.weight"),
+            (&["batch_rays"][..], "KEY=VALUE"),
+        ] {
+            let err = sets(bad).unwrap_err();
+            assert!(err.contains(says), "{bad:?}: {err}");
+        }
     }
 }

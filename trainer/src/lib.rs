@@ -5,7 +5,8 @@
 //!   scaled world, the dense trajectory with pose interpolation, events with successors, rays.
 //! - [`engine`]: the CPU radiance-field engine (kernels, gradients, optimiser).
 //! - [`config`]: a run's settings; [`presets`]: the registry of named methods.
-//! - [`train`]: the training loop; [`checkpoint`]: saved states; [`eval`]: test-view scores.
+//! - [`method`]: one training step of any method (blur kernel, event loss, eCRF, EDI);
+//!   [`train`]: the training loop; [`checkpoint`]: saved states; [`eval`]: test-view scores.
 //! - [`blur`]: blur models (so far the se(3) exponential map of the rigid blurring kernel).
 //! - [`events`]: event supervision: the eCRF and the EDI prior.
 //! - [`metrics`]: PSNR and SSIM of images as scikit-image computes them ([`metrics::ImageRef`]).
@@ -20,6 +21,7 @@ pub mod engine;
 pub mod error;
 pub mod eval;
 pub mod events;
+pub mod method;
 pub mod metrics;
 pub mod presets;
 pub mod train;

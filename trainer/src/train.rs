@@ -23,9 +23,11 @@ use crate::data::rays::Ray;
 use crate::engine::adam::Adam;
 use crate::engine::model::{Aabb, Model};
 use crate::engine::parallel::GradBuffers;
+use crate::engine::real::Real;
 use crate::engine::renderer::{RayChunk, Renderer};
 use crate::engine::rng::Rng;
 use crate::error::TrainError;
+use crate::method::{self, Method, StepData, StepLosses};
 
 /// Near plane of the NDC warp (the reference's 1, in the loader's scaled world).
 pub const NDC_NEAR: f64 = 1.0;
@@ -34,9 +36,10 @@ pub const RESPONSE_FLOOR: f32 = 1e-4;
 
 /// g(c) and g'(c) for the response exponent `inv_gamma` = 1 / gamma.
 #[inline]
-pub fn response(c: f32, inv_gamma: f32) -> (f32, f32) {
-    if c <= RESPONSE_FLOOR {
-        (RESPONSE_FLOOR.powf(inv_gamma), 0.0)
+pub fn response<R: Real>(c: R, inv_gamma: R) -> (R, R) {
+    let floor = R::of(RESPONSE_FLOOR as f64);
+    if c <= floor {
+        (floor.powf(inv_gamma), R::zero())
     } else {
         let y = c.powf(inv_gamma);
         (y, inv_gamma * y / c)
@@ -152,6 +155,10 @@ pub struct LogRow {
     pub loss: f64,
     /// PSNR of the fine pass on the step's batch (display space).
     pub psnr_batch: f64,
+    /// Event loss of the step (unweighted; 0 without events).
+    pub event_loss: f64,
+    /// EDI loss of the step (unweighted; 0 without the prior).
+    pub edi_loss: f64,
     /// Mean test-view PSNR, when evaluated at this step.
     pub psnr_test: Option<f64>,
 }
@@ -172,8 +179,8 @@ pub struct Trainer<'a> {
     data: &'a Dataset,
     /// The configuration.
     pub cfg: TrainConfig,
-    /// The model.
-    pub model: Model,
+    /// The method's parameters (field, blur kernel, eCRF).
+    pub method: Method,
     /// Parameters.
     pub params: Vec<f32>,
     /// Optimiser state.
@@ -182,8 +189,8 @@ pub struct Trainer<'a> {
     pub step: u64,
     /// Training time so far (s).
     pub seconds: f64,
-    engine: StepBuffers,
-    train_views: Vec<usize>,
+    engine: method::StepBuffers,
+    step_data: StepData,
     threads: usize,
     pool: rayon::ThreadPool,
 }
@@ -209,34 +216,52 @@ fn check_images(data: &Dataset, source: ImageSource) -> Result<Vec<usize>, Train
 }
 
 impl<'a> Trainer<'a> {
-    /// A fresh run (parameters from the seed) or, with `checkpoint`, a resumed one.
+    /// A fresh run (parameters from the seed) or, with `checkpoint`, a resumed one; the EDI
+    /// targets (if any) are computed in memory.
     pub fn new(data: &'a Dataset, cfg: TrainConfig, checkpoint: Option<Checkpoint>) -> Result<Trainer<'a>, TrainError> {
+        Trainer::new_in(data, cfg, checkpoint, None)
+    }
+
+    /// As [`Trainer::new`], caching the EDI targets in `cache` (e.g. the run folder's `edi/`).
+    pub fn new_in(
+        data: &'a Dataset,
+        cfg: TrainConfig,
+        checkpoint: Option<Checkpoint>,
+        cache: Option<&Path>,
+    ) -> Result<Trainer<'a>, TrainError> {
         let mut cfg = cfg;
         cfg.validate().map_err(TrainError::Config)?;
-        if cfg.model.bounds.is_none() {
-            cfg.model.bounds = Some(scene_bounds(data));
-        }
+        method::resolve(&mut cfg, data);
         let train_views = check_images(data, cfg.images)?;
-        let model = Model::new(&cfg.model);
+        if (cfg.events.is_some() || cfg.edi.is_some()) && data.events.is_empty() {
+            return Err(TrainError::Missing {
+                path: data.dir.join("events.h5"),
+                what: "the method needs events but none were loaded".into(),
+                fix: "load the dataset with its events (LoadOptions::read_events) or choose an image-only preset"
+                    .into(),
+            });
+        }
+        let method = Method::new(&cfg, data.views.len());
         let threads = if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads };
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .map_err(|e| TrainError::Config(format!("threads = {threads}: cannot start the workers ({e})")))?;
+        let step_data = pool.install(|| StepData::new(data, &cfg, train_views, cache))?;
         let (params, adam, step, seconds) = match checkpoint {
             Some(c) => (c.params, c.adam, c.step, c.seconds),
-            None => (model.init(cfg.seed), Adam::new(&model.layout), 0, 0.0),
+            None => (method.init(cfg.seed), Adam::new(method.layout()), 0, 0.0),
         };
         Ok(Trainer {
             data,
             cfg,
-            model,
+            method,
             params,
             adam,
             step,
             seconds,
-            engine: StepBuffers::new(threads),
-            train_views,
+            engine: method::StepBuffers::new(threads),
+            step_data,
             threads,
             pool,
         })
@@ -247,29 +272,12 @@ impl<'a> Trainer<'a> {
         Checkpoint { step: self.step, seconds: self.seconds, params: self.params.clone(), adam: self.adam.clone() }
     }
 
-    /// One iteration; returns (mean image loss, batch PSNR of the fine pass).
-    pub fn step(&mut self) -> (f64, f64) {
+    /// One iteration; returns its losses.
+    pub fn step(&mut self) -> StepLosses {
         let t0 = Instant::now();
-        let cfg = &self.cfg;
-        let data = self.data;
-        let (w, h) = (data.intrinsics.width as u64, data.intrinsics.height as u64);
-        // The batch: random (view, pixel) pairs of step `self.step`.
-        let mut pick = Rng::new(cfg.seed, 1 << 40 | self.step);
-        let mut rays = Vec::with_capacity(cfg.batch_rays);
-        let mut targets = Vec::with_capacity(cfg.batch_rays);
-        for _ in 0..cfg.batch_rays {
-            let v = self.train_views[pick.below(self.train_views.len() as u64) as usize];
-            let (i, j) = (pick.below(w) as u32, pick.below(h) as u32);
-            let view = &data.views[v];
-            rays.push(prepare(data, &data.intrinsics.ray(&view.pose, i, j)));
-            let img = match cfg.images {
-                ImageSource::Blurry => &view.image,
-                ImageSource::Sharp => view.sharp.as_ref().expect("checked in Trainer::new"),
-            };
-            targets.push(img.pixel(i, j));
-        }
+        let (cfg, data, sd) = (&self.cfg, self.data, &self.step_data);
         let out = self.pool.install(|| {
-            image_step(&mut self.engine, &self.model, &mut self.params, &mut self.adam, cfg, self.step, &rays, &targets)
+            method::step(&mut self.engine, &self.method, &mut self.params, &mut self.adam, cfg, data, sd, self.step)
         });
         self.step += 1;
         self.seconds += t0.elapsed().as_secs_f64();
@@ -289,12 +297,21 @@ impl<'a> Trainer<'a> {
         let mut rows = Vec::new();
         let mut log = LogFile::open(run, self.step)?;
         while self.step < end {
-            let (loss, psnr) = self.step();
-            let mut row = LogRow { step: self.step, seconds: self.seconds, loss, psnr_batch: psnr, psnr_test: None };
+            let l = self.step();
+            let (loss, psnr) = (l.image, l.psnr);
+            let mut row = LogRow {
+                step: self.step,
+                seconds: self.seconds,
+                loss,
+                psnr_batch: psnr,
+                event_loss: l.event,
+                edi_loss: l.edi,
+                psnr_test: None,
+            };
             let eval_now = self.cfg.eval_every > 0 && self.step.is_multiple_of(self.cfg.eval_every);
             if eval_now || self.step == self.cfg.iterations {
                 let scores =
-                    crate::eval::evaluate(self.data, &self.model, &self.params, &self.cfg, self.threads, None)?;
+                    crate::eval::evaluate(self.data, &self.method.model, &self.params, &self.cfg, self.threads, None)?;
                 row.psnr_test = Some(scores.mean_psnr());
             }
             bar.set_message(format!("loss {loss:.4} psnr {psnr:.2}"));
@@ -303,7 +320,7 @@ impl<'a> Trainer<'a> {
             rows.push(row);
             let stop = opts.stop.is_some_and(|s| s.load(Ordering::SeqCst));
             if self.step.is_multiple_of(self.cfg.checkpoint_every) || self.step == end || stop {
-                self.checkpoint().save(&self.model.layout, &run.checkpoint())?;
+                self.checkpoint().save(self.method.layout(), &run.checkpoint())?;
             }
             if stop {
                 break;
@@ -401,7 +418,7 @@ struct LogFile {
 }
 
 impl LogFile {
-    const HEADER: &'static str = "step,seconds,loss,psnr_batch,psnr_test\n";
+    const HEADER: &'static str = "step,seconds,loss,psnr_batch,event_loss,edi_loss,psnr_test\n";
 
     fn open(run: &RunPaths, step: u64) -> Result<LogFile, TrainError> {
         let path = run.log();
@@ -420,7 +437,10 @@ impl LogFile {
 
     fn push(&mut self, r: &LogRow) -> Result<(), TrainError> {
         let test = r.psnr_test.map_or(String::new(), |p| format!("{p:.4}"));
-        self.text.push_str(&format!("{},{:.3},{:.6},{:.4},{}\n", r.step, r.seconds, r.loss, r.psnr_batch, test));
+        self.text.push_str(&format!(
+            "{},{:.3},{:.6},{:.4},{:.6},{:.6},{}\n",
+            r.step, r.seconds, r.loss, r.psnr_batch, r.event_loss, r.edi_loss, test
+        ));
         if r.psnr_test.is_some() || r.step.is_multiple_of(50) {
             self.flush()?;
         }

@@ -39,9 +39,19 @@ pub struct Intrinsics {
 impl Intrinsics {
     /// Camera-space direction through the centre of pixel (`i`, `j`) = (column, row).
     pub fn camera_direction(&self, i: u32, j: u32) -> DVec3 {
-        let u = i as f64 + 0.5 - 0.5 * self.width as f64;
-        let v = j as f64 + 0.5 - 0.5 * self.height as f64;
-        DVec3::new(u / self.focal, -v / self.focal, -1.0)
+        self.camera_direction_at(i as f64 + 0.5, j as f64 + 0.5)
+    }
+
+    /// Camera-space direction through the image point (`u`, `v`) (continuous pixel
+    /// coordinates: pixel (i, j) covers [i, i + 1) x [j, j + 1), its centre is (i + 0.5, j + 0.5)).
+    pub fn camera_direction_at(&self, u: f64, v: f64) -> DVec3 {
+        DVec3::new((u - 0.5 * self.width as f64) / self.focal, -(v - 0.5 * self.height as f64) / self.focal, -1.0)
+    }
+
+    /// The world ray through the image point (`u`, `v`) (continuous coordinates, see
+    /// [`Intrinsics::camera_direction_at`]) for a camera at `pose`.
+    pub fn ray_through(&self, pose: &Pose, u: f64, v: f64) -> Ray {
+        Ray { origin: pose.position, direction: pose.rotation * self.camera_direction_at(u, v) }
     }
 
     /// The world ray of pixel (`i`, `j`) for a camera at `pose` (camera-to-world).

@@ -70,9 +70,17 @@ pub struct ModelConfig {
     pub tv_plane: f64,
     /// TV weight on the lines (reference: 1e-3 x 5).
     pub tv_line: f64,
+    /// Explicit VM volumes on (the reference) or off (an MLP-only field, Table 3's "without
+    /// V_c,f" row; the MLPs then see only the positional encoding).
+    #[serde(default = "explicit_default")]
+    pub explicit: bool,
     /// The NDC box the volumes cover; `None` in a preset means "fit it to the dataset's
     /// cameras" (`trainer::train::scene_bounds`), and a run records the resolved box.
     pub bounds: Option<Aabb>,
+}
+
+fn explicit_default() -> bool {
+    true
 }
 
 /// A built model: layout and levels (the parameters live in a separate flat vector).
@@ -98,12 +106,14 @@ impl Model {
         let vs = |l: &mut Layout, name: &str, s: &VolumeShape| {
             VmVolume::new(l, name, b.grid(s.res), s.comps, s.features, (b.min, b.max))
         };
-        let cv = vs(&mut layout, "coarse.vm", &config.coarse_volume);
-        let mut volumes = vec![cv.clone()];
-        let coarse = Field::new(&mut layout, "coarse", vec![cv.clone()], config.coarse.clone());
+        let mut volumes = Vec::new();
+        if config.explicit {
+            volumes.push(vs(&mut layout, "coarse.vm", &config.coarse_volume));
+        }
+        let coarse = Field::new(&mut layout, "coarse", volumes.clone(), config.coarse.clone());
         let fine = config.fine.as_ref().map(|shape| {
-            let mut reads = vec![cv.clone()];
-            if let Some(s) = &config.fine_volume {
+            let mut reads = volumes.clone();
+            if let (Some(s), true) = (&config.fine_volume, config.explicit) {
                 let fv = vs(&mut layout, "fine.vm", s);
                 volumes.push(fv.clone());
                 reads.push(fv);

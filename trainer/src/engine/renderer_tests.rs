@@ -26,6 +26,7 @@ fn tiny_config(two_levels: bool) -> ModelConfig {
         density_noise: 0.3,
         tv_plane: 0.0,
         tv_line: 0.0,
+        explicit: true,
         bounds: Some(super::model::Aabb { min: [-0.8, -0.7, -1.0], max: [0.9, 0.8, 1.0] }),
     }
 }

@@ -11,6 +11,7 @@ use trainer::checkpoint::Checkpoint;
 use trainer::config::TrainConfig;
 use trainer::data::dataset::{Dataset, LoadOptions};
 use trainer::engine::model::Model;
+use trainer::method::Method;
 use trainer::presets::{self, Scale};
 use trainer::train::{RunPaths, TrainOptions, Trainer};
 
@@ -55,6 +56,11 @@ enum Cmd {
         /// only).
         #[arg(long)]
         threads: Option<usize>,
+        /// Override one setting of the preset, KEY=VALUE with KEY a dotted path of its TOML
+        /// form (e.g. `events.colour=true`, `ecrf=none`, `events.threshold=[0.3,0.3]`);
+        /// repeatable; a new run only.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
@@ -97,11 +103,14 @@ struct RunRecord {
 fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::Train { data, preset, scale, out, config, resume, iterations, seed, threads, quiet } => {
+        Cmd::Train { data, preset, scale, out, config, resume, iterations, seed, threads, set, quiet } => {
             if resume && config.is_some() {
                 bail!("--config: a resumed run keeps its recorded config.toml; drop --config");
             }
-            train(data, preset, scale, &out, config, resume, iterations, seed, threads, quiet)
+            if resume && !set.is_empty() {
+                bail!("--set: a resumed run keeps its recorded config.toml; drop --set");
+            }
+            train(data, preset, scale, &out, config, resume, iterations, seed, threads, &set, quiet)
         }
         Cmd::Eval { run, threads } => eval(&run, threads),
         Cmd::Presets { show: None, .. } => {
@@ -122,9 +131,10 @@ fn main() -> Result<()> {
     }
 }
 
-fn load(data: &Path, cfg: &TrainConfig) -> Result<Dataset> {
-    let opts = LoadOptions { read_events: false, read_sharp: true, ..LoadOptions::default() };
-    let _ = cfg;
+/// Loads the dataset, with its events only when the method uses them (evaluation never does).
+fn load(data: &Path, cfg: &TrainConfig, events: bool) -> Result<Dataset> {
+    let read_events = events && (cfg.events.is_some() || cfg.edi.is_some());
+    let opts = LoadOptions { read_events, read_sharp: true, ..LoadOptions::default() };
     Ok(Dataset::load(data, &opts)?)
 }
 
@@ -139,6 +149,7 @@ fn train(
     iterations: Option<u64>,
     seed: Option<u64>,
     threads: Option<usize>,
+    set: &[String],
     quiet: bool,
 ) -> Result<()> {
     let run = RunPaths::new(out);
@@ -168,9 +179,10 @@ fn train(
                 );
             }
         }
-        let model = Model::new(&record.config.model);
+        let dataset = load(&record.data, &record.config, true)?;
+        let method = Method::new(&record.config, dataset.views.len());
         let ck =
-            if run.checkpoint().exists() { Some(Checkpoint::load(&model.layout, &run.checkpoint())?) } else { None };
+            if run.checkpoint().exists() { Some(Checkpoint::load(method.layout(), &run.checkpoint())?) } else { None };
         if let Some(n) = iterations.filter(|n| *n != record.config.iterations) {
             let done = ck.as_ref().map_or(0, |c| c.step);
             if n < done {
@@ -180,7 +192,7 @@ fn train(
             record.config.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
             simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
         }
-        (record, ck, None)
+        (record, ck, Some(dataset))
     } else {
         let (Some(data), Some(preset)) = (data, preset) else { bail!("--data and --preset are needed for a new run") };
         let Some(p) = presets::preset(&preset) else {
@@ -205,6 +217,7 @@ fn train(
                 })?
             }
         };
+        config = trainer::config::apply_overrides(&config, set).map_err(|e| anyhow::anyhow!("{e}"))?;
         if let Some(n) = iterations {
             config.iterations = n;
         }
@@ -218,10 +231,8 @@ fn train(
         let data =
             std::fs::canonicalize(&data).with_context(|| format!("--data {}: no such folder", data.display()))?;
         // The volume box is fitted to the dataset's cameras once and recorded with the run.
-        let dataset = load(&data, &config)?;
-        if config.model.bounds.is_none() {
-            config.model.bounds = Some(trainer::train::scene_bounds(&dataset));
-        }
+        let dataset = load(&data, &config, true)?;
+        trainer::method::resolve(&mut config, &dataset);
         let record = RunRecord { preset, scale, data, config };
         std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the run folder", out.display()))?;
         simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
@@ -229,9 +240,9 @@ fn train(
     };
     let dataset = match preloaded {
         Some(d) => d,
-        None => load(&record.data, &record.config)?,
+        None => load(&record.data, &record.config, true)?,
     };
-    let mut trainer = Trainer::new(&dataset, record.config.clone(), checkpoint)?;
+    let mut trainer = Trainer::new_in(&dataset, record.config.clone(), checkpoint, Some(&run.dir.join("edi")))?;
     let start = trainer.step;
     if start >= record.config.iterations {
         println!(
@@ -284,10 +295,11 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
     let text = std::fs::read_to_string(run.config())
         .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
     let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
-    let model = Model::new(&record.config.model);
-    let ck = Checkpoint::load(&model.layout, &run.checkpoint())?;
-    let dataset = load(&record.data, &record.config)?;
-    let scores = trainer::eval::evaluate(&dataset, &model, &ck.params, &record.config, threads, Some(&run.eval()))?;
+    let dataset = load(&record.data, &record.config, false)?;
+    let method = Method::new(&record.config, dataset.views.len());
+    let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
+    let scores =
+        trainer::eval::evaluate(&dataset, &method.model, &ck.params, &record.config, threads, Some(&run.eval()))?;
     let json = serde_json::json!({
         "preset": record.preset,
         "scale": record.scale,

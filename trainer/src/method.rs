@@ -1,0 +1,760 @@
+//! One training step of any method: the image loss through an optional blur kernel, the event
+//! loss through an optional eCRF, the EDI prior, TV and Adam.
+//!
+//! A step's batch is a list of *groups* of rays, each worker's share holding its part of the
+//! pixels and then its part of the events:
+//! - an image pixel of a training view: one plain ray, or (blur kernel on) the K warped rays and
+//!   the origin ray last. Its blurry colour is `B = sum_k w_k C_k` (linear), the loss
+//!   `(g(B) - y)^2` per channel on both passes, g the camera response. The EDI prior adds
+//!   `lambda_EDI (g(C_origin) - y_EDI)^2` on both passes.
+//! - an event pair: event j and its successor k at the same pixel; the pixel's rays at the
+//!   trajectory poses of t_j and t_k (no blur kernel). With L = luma(eCRF(C)) (or the event's
+//!   Bayer channel for colour events), the loss is
+//!   `(log(L_k + eps) - log(L_j + eps) - p_k Theta_{p_k})^2` on both passes.
+//!
+//! Each term is a mean over its pixels (x 3 channels) or events and the passes add. The kernel's
+//! gradient reaches the twists through the renderer's ray gradients, the NDC warp's backward,
+//! the view direction's normalisation and the rigid warp (all finite-difference checked).
+
+use std::path::Path;
+
+use glam::DVec3;
+
+use crate::blur::rigid::{KernelOut, RigidKernel};
+use crate::blur::se3::{self, Rigid};
+use crate::config::{ImageSource, TrainConfig};
+use crate::data::dataset::Dataset;
+use crate::data::image::RgbImage;
+use crate::data::rays::{ndc_ray_backward, Intrinsics, Ray};
+use crate::engine::adam::Adam;
+use crate::engine::model::Model;
+use crate::engine::parallel::GradBuffers;
+use crate::engine::params::Layout;
+use crate::engine::real::Real;
+use crate::engine::renderer::{RayChunk, RayGrad, Renderer};
+use crate::engine::rng::Rng;
+use crate::error::TrainError;
+use crate::events::ecrf::{Ecrf, EcrfWorkspace};
+use crate::train::{prepare, response, scene_bounds, unzip, PreparedRay, NDC_NEAR};
+
+/// The reference luma of monochrome events (BT.601), used when the dataset does not say.
+pub const BT601: [f64; 3] = [0.299, 0.587, 0.114];
+/// Rec.709 luma, what `evsim`'s monochrome sensor sees.
+pub const REC709: [f64; 3] = [0.2126, 0.7152, 0.0722];
+/// Weights of colour events by Bayer channel (R, G, B), as the reference.
+pub const COLOUR_WEIGHTS: [f32; 3] = [0.4, 0.2, 0.4];
+
+/// A method's parameters: the radiance field, then (when configured) the blur kernel and the
+/// eCRF, all in one layout (one parameter vector, one Adam, one checkpoint).
+#[derive(Clone, Debug)]
+pub struct Method {
+    /// The radiance field (its layout holds every parameter of the method).
+    pub model: Model,
+    /// The rigid blurring kernel (embeddings for every view of the dataset).
+    pub kernel: Option<RigidKernel>,
+    /// The event camera response.
+    pub ecrf: Option<Ecrf>,
+}
+
+impl Method {
+    /// The parameters of `cfg` for a dataset of `views` views.
+    pub fn new(cfg: &TrainConfig, views: usize) -> Method {
+        let mut model = Model::new(&cfg.model);
+        let kernel = cfg.blur.as_ref().map(|b| RigidKernel::new(&mut model.layout, &b.kernel, views));
+        let ecrf = cfg.ecrf.as_ref().map(|c| Ecrf::new(&mut model.layout, c));
+        Method { model, kernel, ecrf }
+    }
+
+    /// The layout of every parameter.
+    pub fn layout(&self) -> &Layout {
+        &self.model.layout
+    }
+
+    /// Fresh parameters from `seed` (the field as `Model::init`, then the kernel and the eCRF).
+    pub fn init(&self, seed: u64) -> Vec<f32> {
+        let mut params = self.model.init(seed);
+        if let Some(k) = &self.kernel {
+            let mut rng = Rng::new(seed, 0x1419);
+            k.init(&mut params, &mut || rng.uniform_f64());
+        }
+        if let Some(e) = &self.ecrf {
+            e.init(&mut params, seed);
+        }
+        params
+    }
+}
+
+/// Fills in what a configuration leaves to the dataset: the volume box (fitted to the cameras)
+/// and the event model (threshold, log offset, luma from `dataset.toml`, else the reference's).
+pub fn resolve(cfg: &mut TrainConfig, data: &Dataset) {
+    if cfg.model.bounds.is_none() {
+        cfg.model.bounds = Some(scene_bounds(data));
+    }
+    let Some(ev) = cfg.events.as_mut() else { return };
+    let model = event_model(data);
+    let model = model.as_ref();
+    let num =
+        |key: &str| model.and_then(|m| m.get(key)).and_then(|v| v.as_float().or(v.as_integer().map(|i| i as f64)));
+    if ev.threshold.is_none() {
+        ev.threshold = Some(match (num("c_pos"), num("c_neg")) {
+            (Some(on), Some(off)) => [on, off],
+            _ => [0.2, 0.2],
+        });
+    }
+    if ev.log_eps.is_none() {
+        ev.log_eps = Some(num("log_eps").unwrap_or(1e-5));
+    }
+    if ev.luma.is_none() {
+        let sensor = model.and_then(|m| m.get("sensor")).and_then(|s| s.as_str());
+        ev.luma = Some(if sensor == Some("mono") { REC709 } else { BT601 });
+    }
+}
+
+/// The `[event_model]` table of the dataset's `dataset.toml` (written by `evsim`), if any.
+pub fn event_model(data: &Dataset) -> Option<toml::Value> {
+    let text = std::fs::read_to_string(data.dir.join("dataset.toml")).ok()?;
+    let manifest: toml::Value = toml::from_str(&text).ok()?;
+    manifest.get("event_model").cloned()
+}
+
+/// The events the loss samples from: indices of events with a successor (and, with
+/// `inside_exposures`, whose pair lies inside one training view's exposure).
+pub fn event_candidates(data: &Dataset, train_views: &[usize], inside_exposures: bool) -> Vec<u32> {
+    let ev = &data.events;
+    let mut windows: Vec<(f64, f64)> =
+        train_views.iter().map(|&v| (data.views[v].t_start_us, data.views[v].t_end_us)).collect();
+    windows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let inside = |a: f64, b: f64| {
+        // the last window starting at or before a
+        let i = windows.partition_point(|w| w.0 <= a);
+        i > 0 && b <= windows[i - 1].1
+    };
+    (0..ev.len() as u32)
+        .filter(|&i| match ev.successor(i as usize) {
+            None => false,
+            Some(k) => {
+                let (a, b) = (ev.t_us[i as usize], ev.t_us[k]);
+                data.trajectory.contains(a) && data.trajectory.contains(b) && (!inside_exposures || inside(a, b))
+            }
+        })
+        .collect()
+}
+
+/// What a step needs besides the parameters, prepared once per run.
+#[derive(Clone, Debug, Default)]
+pub struct StepData {
+    /// Training views.
+    pub train_views: Vec<usize>,
+    /// Events the loss samples from.
+    pub candidates: Vec<u32>,
+    /// EDI targets per view (display-referred), for the training views.
+    pub edi: Vec<Option<RgbImage>>,
+}
+
+impl StepData {
+    /// Prepares the event candidates and the EDI targets (cached in `cache`, when given).
+    pub fn new(
+        data: &Dataset,
+        cfg: &TrainConfig,
+        train_views: Vec<usize>,
+        cache: Option<&Path>,
+    ) -> Result<StepData, TrainError> {
+        let mut candidates = Vec::new();
+        if let Some(e) = &cfg.events {
+            let sensor = event_model(data).and_then(|m| m.get("sensor").and_then(|s| s.as_str().map(str::to_string)));
+            if e.colour && sensor.as_deref() == Some("mono") {
+                return Err(TrainError::Config(format!(
+                    "events.colour = true, but {} says the events are monochrome (sensor = \"mono\"); set events.colour = false or write the dataset with the rggb sensor",
+                    data.dir.join("dataset.toml").display()
+                )));
+            }
+            candidates = event_candidates(data, &train_views, e.inside_exposures);
+            if candidates.is_empty() {
+                return Err(TrainError::Missing {
+                    path: data.dir.join("events.h5"),
+                    what: "no event has a successor at the same pixel (the event loss has nothing to sample)".into(),
+                    fix: "write the dataset with events (evsim dataset), or choose a preset without events".into(),
+                });
+            }
+        }
+        let mut edi = vec![None; data.views.len()];
+        if let Some(d) = &cfg.edi {
+            let [on, off] = event_thresholds(cfg, data);
+            let images = match cache {
+                Some(dir) => {
+                    crate::events::edi::precompute(data, &train_views, d.bins, (on, off), cfg.response_gamma, dir)?
+                }
+                None => train_views
+                    .iter()
+                    .map(|&v| {
+                        let (w, h) = (data.intrinsics.width, data.intrinsics.height);
+                        crate::events::edi::edi_image(
+                            &data.views[v],
+                            &data.events,
+                            w,
+                            h,
+                            d.bins,
+                            (on, off),
+                            cfg.response_gamma,
+                        )
+                    })
+                    .collect(),
+            };
+            for (&v, img) in train_views.iter().zip(images) {
+                edi[v] = Some(img);
+            }
+        }
+        Ok(StepData { train_views, candidates, edi })
+    }
+}
+
+/// The training thresholds (resolved, else the dataset's, else 0.2).
+fn event_thresholds(cfg: &TrainConfig, data: &Dataset) -> [f64; 2] {
+    match cfg.events.as_ref().and_then(|e| e.threshold) {
+        Some(t) => t,
+        None => {
+            let mut c = cfg.clone();
+            resolve(&mut c, data);
+            c.events.and_then(|e| e.threshold).unwrap_or([0.2, 0.2])
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Kind {
+    /// A pixel of `view`: target colour and EDI target (NaN: none).
+    Image { view: u32, target: [f32; 3], edi: [f32; 3] },
+    /// An event pair (two rays: t_j, t_k) with the successor's polarity; channel 3 = luma.
+    Event { polarity: i8, channel: u8 },
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Group {
+    first: usize,
+    n: usize,
+    kind: Kind,
+}
+
+/// Per-thread state of a step.
+#[derive(Clone, Debug, Default)]
+pub struct Worker {
+    renderer: Renderer,
+    d_rays: Vec<RayGrad<f32>>,
+    dc: Vec<[f32; 3]>,
+    df: Vec<[f32; 3]>,
+    ecrf_ws: [EcrfWorkspace<f32>; 3],
+    ex: [Vec<f32>; 3],
+    ey: [Vec<f32>; 3],
+    edy: [Vec<f32>; 3],
+    edx: Vec<f32>,
+    epol: Vec<i8>,
+    /// Kernel gradients per view: K x (dR 9 + dt 3), then K + 1 weight gradients.
+    kgrad: Vec<f64>,
+}
+
+/// Buffers reused across steps.
+#[derive(Debug, Default)]
+pub struct StepBuffers {
+    grads: GradBuffers,
+    workers: Vec<Worker>,
+    sum: Vec<f32>,
+}
+
+impl StepBuffers {
+    /// Buffers for `threads` workers (the cut of every batch, hence the reproducibility unit).
+    pub fn new(threads: usize) -> StepBuffers {
+        StepBuffers { grads: GradBuffers::default(), workers: vec![Worker::default(); threads.max(1)], sum: Vec::new() }
+    }
+}
+
+/// Mean losses of a step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepLosses {
+    /// Image loss (both passes, mean over pixels and channels).
+    pub image: f64,
+    /// PSNR of the fine pass's (blurry) colour on the batch.
+    pub psnr: f64,
+    /// Event loss (both passes, mean over events, unweighted).
+    pub event: f64,
+    /// EDI loss (both passes, mean over pixels and channels, unweighted).
+    pub edi: f64,
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct Sums {
+    image: [f64; 2],
+    event: f64,
+    edi: f64,
+}
+
+/// The batch of one step: rays (NDC, and their world form) and groups.
+struct Batch {
+    rays: Vec<PreparedRay>,
+    world: Vec<Ray>,
+    groups: Vec<Group>,
+    pixels: usize,
+    events: usize,
+}
+
+/// One view's kernel in this step.
+struct ViewKernel {
+    out: KernelOut<f32>,
+    twists: Vec<[f64; 6]>,
+    motions: Vec<Rigid>,
+}
+
+fn to_dvec(v: [f64; 3]) -> DVec3 {
+    DVec3::from_array(v)
+}
+
+/// One optimisation step (module doc); returns its losses.
+#[allow(clippy::too_many_arguments)]
+pub fn step(
+    bufs: &mut StepBuffers,
+    method: &Method,
+    params: &mut [f32],
+    adam: &mut Adam,
+    cfg: &TrainConfig,
+    data: &Dataset,
+    sd: &StepData,
+    step: u64,
+) -> StepLosses {
+    let model = &method.model;
+    let (w, h) = (data.intrinsics.width, data.intrinsics.height);
+    let blur_on = method.kernel.is_some() && cfg.blur.as_ref().is_some_and(|b| step >= b.start);
+    // Kernels of the views of this step (computed on first use).
+    let mut kernels: Vec<Option<ViewKernel>> = (0..data.views.len()).map(|_| None).collect();
+    let mut batch = Batch { rays: Vec::new(), world: Vec::new(), groups: Vec::new(), pixels: 0, events: 0 };
+    let n_pix = cfg.batch_rays;
+    let n_ev = if cfg.events.is_some() { cfg.events.as_ref().map_or(0, |e| e.batch) } else { 0 };
+    let mut pick = Rng::new(cfg.seed, 1 << 40 | step);
+    let mut pick_ev = Rng::new(cfg.seed, 2 << 40 | step);
+    let edi_w = cfg.edi.as_ref().map_or(0.0, |d| d.weight_at(step));
+    let ev = &data.events;
+    let evc = cfg.events.as_ref();
+    let [th_on, th_off] = evc.and_then(|e| e.threshold).unwrap_or([0.2, 0.2]);
+    // Each worker's range of groups (as `GradBuffers::run` cuts them) holds its share of the
+    // pixels, then its share of the events: chunks never mix the two, so only pixel chunks pay
+    // for ray gradients.
+    let threads = bufs.workers.len();
+    let total = n_pix + n_ev;
+    let kinds = (0..threads).flat_map(|t| {
+        let len = total * (t + 1) / threads - total * t / threads;
+        let images = (n_pix * (t + 1) / threads - n_pix * t / threads).min(len);
+        (0..len).map(move |i| i < images)
+    });
+    for is_image in kinds {
+        let first = batch.rays.len();
+        if is_image {
+            let v = sd.train_views[pick.below(sd.train_views.len() as u64) as usize];
+            let (i, j) = (pick.below(w as u64) as u32, pick.below(h as u64) as u32);
+            let view = &data.views[v];
+            let img = match cfg.images {
+                ImageSource::Blurry => &view.image,
+                ImageSource::Sharp => view.sharp.as_ref().expect("checked in Trainer::new"),
+            };
+            let edi = sd.edi.get(v).and_then(|e| e.as_ref()).map_or([f32::NAN; 3], |e| e.pixel(i, j));
+            let ray = data.intrinsics.ray(&view.pose, i, j);
+            if blur_on {
+                let kernel = method.kernel.as_ref().expect("blur_on");
+                let vk = kernels[v].get_or_insert_with(|| {
+                    let out = kernel.forward(params, v);
+                    let twists: Vec<[f64; 6]> = out.twists.iter().map(|t| t.map(|x| x as f64)).collect();
+                    let motions = twists.iter().map(|&t| se3::exp(t)).collect();
+                    ViewKernel { out, twists, motions }
+                });
+                for m in &vk.motions {
+                    let o = m.point(ray.origin.to_array());
+                    let d = m.vector(ray.direction.to_array());
+                    let warped = Ray { origin: to_dvec(o), direction: to_dvec(d) };
+                    batch.rays.push(prepare(data, &warped));
+                    batch.world.push(warped);
+                }
+            }
+            batch.rays.push(prepare(data, &ray));
+            batch.world.push(ray);
+            batch.pixels += 1;
+            let kind = Kind::Image { view: v as u32, target: img.pixel(i, j), edi };
+            batch.groups.push(Group { first, n: batch.rays.len() - first, kind });
+        } else {
+            let j = sd.candidates[pick_ev.below(sd.candidates.len() as u64) as usize] as usize;
+            let k = ev.successor(j).expect("candidates have successors");
+            let (x, y) = (ev.x[j] as f64, ev.y[j] as f64);
+            let rays = [ev.t_us[j], ev.t_us[k]]
+                .map(|t| data.trajectory.pose_at(t).map(|pose| data.intrinsics.ray_through(&pose, x + 0.5, y + 0.5)));
+            let [Some(a), Some(b)] = rays else { continue };
+            for r in [a, b] {
+                batch.rays.push(prepare(data, &r));
+                batch.world.push(r);
+            }
+            batch.events += 1;
+            let channel = if evc.is_some_and(|e| e.colour) { bayer(x, y) } else { 3 };
+            batch.groups.push(Group { first, n: 2, kind: Kind::Event { polarity: ev.polarity[k], channel } });
+        }
+    }
+    let inv_gamma = (1.0 / cfg.response_gamma) as f32;
+    let img_scale = 1.0 / (3.0 * batch.pixels.max(1) as f32);
+    let ev_scale = evc.map_or(0.0, |e| e.weight as f32) / batch.events.max(1) as f32;
+    let edi_scale = edi_w as f32 * img_scale;
+    let k_rays = method.kernel.as_ref().map_or(0, |k| k.config.k);
+    let kstride = 12 * k_rays + k_rays + 1;
+    let n_views = data.views.len();
+    let luma = evc.and_then(|e| e.luma).unwrap_or(BT601).map(|x| x as f32);
+    let log_eps = evc.and_then(|e| e.log_eps).unwrap_or(1e-5) as f32;
+    let step_seed = cfg.seed ^ step.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    let chunk_rays = cfg.chunk_rays.max(1);
+    let p: &[f32] = params;
+    let ecrf = method.ecrf.as_ref();
+    let kernels_ref = &kernels;
+    let batch_ref = &batch;
+    let n_groups = batch.groups.len();
+    let sums = bufs.grads.run(model.layout.len(), n_groups, &mut bufs.workers, |range, g, wk| {
+        let mut sums = Sums::default();
+        wk.kgrad.clear();
+        wk.kgrad.resize(if blur_on { n_views * kstride } else { 0 }, 0.0);
+        let groups = &batch_ref.groups;
+        let mut g0 = range.start;
+        while g0 < range.end {
+            let r0 = groups[g0].first;
+            let is_image = |g: &Group| matches!(g.kind, Kind::Image { .. });
+            let kind = is_image(&groups[g0]);
+            let mut g1 = g0 + 1;
+            while g1 < range.end && groups[g1].first + groups[g1].n - r0 <= chunk_rays && is_image(&groups[g1]) == kind
+            {
+                g1 += 1;
+            }
+            let r1 = groups[g1 - 1].first + groups[g1 - 1].n;
+            let (o, d, vd) = unzip(&batch_ref.rays[r0..r1]);
+            let chunk = RayChunk { origins: &o, dirs: &d, viewdirs: &vd };
+            let mut rngs: Vec<Rng> = (r0..r1).map(|r| Rng::new(step_seed, r as u64)).collect();
+            wk.renderer.forward(model, p, &chunk, Some(&mut rngs));
+            let n = r1 - r0;
+            wk.dc.clear();
+            wk.dc.resize(n, [0.0; 3]);
+            wk.df.clear();
+            wk.df.resize(n, [0.0; 3]);
+            let mut any_kernel = false;
+            for gr in &groups[g0..g1] {
+                let Kind::Image { view, target, edi } = gr.kind else { continue };
+                let (a, m) = (gr.first - r0, gr.n);
+                let origin = a + m - 1;
+                let kernel = (m > 1).then(|| kernels_ref[view as usize].as_ref().expect("kernel of a warped pixel"));
+                any_kernel |= kernel.is_some();
+                for pass in 0..2 {
+                    let (cols, dcol) =
+                        if pass == 0 { (wk.renderer.coarse(), &mut wk.dc) } else { (wk.renderer.fine(), &mut wk.df) };
+                    let weights = kernel.map(|vk| &vk.out.weights[..]);
+                    let mut dw = [0.0f32; MAX_RAYS];
+                    sums.image[pass] += blur_loss(
+                        &cols[a..a + m],
+                        weights,
+                        target,
+                        inv_gamma,
+                        img_scale,
+                        &mut dcol[a..a + m],
+                        &mut dw[..m],
+                    ) as f64;
+                    if kernel.is_some() {
+                        let base = view as usize * kstride + 12 * k_rays;
+                        for (q, d) in dw[..m].iter().enumerate() {
+                            wk.kgrad[base + q] += *d as f64;
+                        }
+                    }
+                    if edi_scale > 0.0 && !edi[0].is_nan() {
+                        for c in 0..3 {
+                            let (gc, dg) = response(cols[origin][c], inv_gamma);
+                            let e = gc - edi[c];
+                            sums.edi += (e * e) as f64 / (3 * batch_ref.pixels.max(1)) as f64;
+                            dcol[origin][c] += 2.0 * e * dg * edi_scale;
+                        }
+                    }
+                }
+            }
+            sums.event += event_losses(
+                wk,
+                ecrf,
+                p,
+                g,
+                &groups[g0..g1],
+                r0,
+                [th_on as f32, th_off as f32],
+                luma,
+                log_eps,
+                ev_scale,
+            );
+            let with_rays = blur_on && any_kernel;
+            if with_rays {
+                wk.d_rays.resize(n, RayGrad::zero());
+            }
+            let d_rays = if with_rays { Some(&mut wk.d_rays[..n]) } else { None };
+            wk.renderer.backward(model, p, g, &chunk, &wk.dc, &wk.df, d_rays);
+            if with_rays {
+                for gr in &groups[g0..g1] {
+                    let Kind::Image { view, .. } = gr.kind else { continue };
+                    if gr.n == 1 {
+                        continue;
+                    }
+                    let orig = batch_ref.world[gr.first + gr.n - 1];
+                    let base = view as usize * kstride;
+                    for q in 0..gr.n - 1 {
+                        let r = gr.first + q;
+                        let (dr, dt) = warped_ray_backward(&data.intrinsics, &batch_ref.world[r], &wk.d_rays[r - r0]);
+                        let mut d_r = [[0.0f64; 3]; 3];
+                        let mut d_t = [0.0f64; 3];
+                        se3::warp_backward(
+                            orig.origin.to_array(),
+                            orig.direction.to_array(),
+                            dr.to_array(),
+                            dt.to_array(),
+                            &mut d_r,
+                            &mut d_t,
+                        );
+                        let kg = &mut wk.kgrad[base + 12 * q..base + 12 * q + 12];
+                        for (i, row) in d_r.iter().enumerate() {
+                            for (jx, v) in row.iter().enumerate() {
+                                kg[3 * i + jx] += v;
+                            }
+                        }
+                        for i in 0..3 {
+                            kg[9 + i] += d_t[i];
+                        }
+                    }
+                }
+            }
+            g0 = g1;
+        }
+        sums
+    });
+    let grads = &mut bufs.sum;
+    grads.clear();
+    grads.resize(model.layout.len(), 0.0);
+    bufs.grads.sum_into(grads);
+    // The kernel: twists and weights of every view of the batch, summed over workers in order.
+    if blur_on {
+        let kernel = method.kernel.as_ref().expect("blur_on");
+        for (v, vk) in kernels.iter().enumerate() {
+            let Some(vk) = vk else { continue };
+            let base = v * kstride;
+            let total = |i: usize| bufs.workers.iter().map(|wk| wk.kgrad[base + i]).sum::<f64>();
+            let d_twists: Vec<[f32; 6]> = (0..k_rays)
+                .map(|q| {
+                    let d_r: [[f64; 3]; 3] =
+                        std::array::from_fn(|i| std::array::from_fn(|j| total(12 * q + 3 * i + j)));
+                    let d_t: [f64; 3] = std::array::from_fn(|i| total(12 * q + 9 + i));
+                    se3::exp_backward(vk.twists[q], &d_r, &d_t).map(|x| x as f32)
+                })
+                .collect();
+            let d_weights: Vec<f32> = (0..=k_rays).map(|q| total(12 * k_rays + q) as f32).collect();
+            kernel.backward(params, grads, v, &vk.out, &d_twists, &d_weights);
+        }
+    }
+    // The eCRF learns from its start iteration on (before: held at the identity).
+    if let (Some(e), Some(c)) = (ecrf, cfg.ecrf.as_ref()) {
+        if step < c.start {
+            for r in e.ranges() {
+                grads[r].fill(0.0);
+            }
+        }
+    }
+    let s = sums.iter().fold(Sums::default(), |a, b| Sums {
+        image: [a.image[0] + b.image[0], a.image[1] + b.image[1]],
+        event: a.event + b.event,
+        edi: a.edi + b.edi,
+    });
+    model.tv(params, grads);
+    adam.step(&cfg.adam, &model.layout, params, grads);
+    let np = (3 * batch.pixels.max(1)) as f64;
+    StepLosses {
+        image: (s.image[0] + s.image[1]) / np,
+        psnr: -10.0 * (s.image[1] / np).log10(),
+        event: s.event / batch.events.max(1) as f64,
+        edi: s.edi,
+    }
+}
+
+/// Most rays a pixel group can have (the origin ray and up to 31 warped rays).
+pub const MAX_RAYS: usize = 32;
+
+/// The image loss of one pixel on one pass: the blurry colour `B = sum_k w_k C_k` (or the one
+/// ray's colour when `weights` is `None`), `sum_c (g(B_c) - y_c)^2`. Writes dL/dC_k (times
+/// `scale`) into `d_cols` and dL/dw_k (times `scale`) into `d_weights`; returns the unscaled loss.
+pub fn blur_loss<R: Real>(
+    cols: &[[R; 3]],
+    weights: Option<&[R]>,
+    target: [R; 3],
+    inv_gamma: R,
+    scale: R,
+    d_cols: &mut [[R; 3]],
+    d_weights: &mut [R],
+) -> R {
+    let mut blur = [R::zero(); 3];
+    match weights {
+        None => blur = cols[cols.len() - 1],
+        Some(w) => {
+            for (q, &wq) in w.iter().enumerate() {
+                for c in 0..3 {
+                    blur[c] += wq * cols[q][c];
+                }
+            }
+        }
+    }
+    let mut loss = R::zero();
+    let mut d_blur = [R::zero(); 3];
+    for c in 0..3 {
+        let (gc, dg) = response(blur[c], inv_gamma);
+        let e = gc - target[c];
+        loss += e * e;
+        d_blur[c] = R::of(2.0) * e * dg * scale;
+    }
+    match weights {
+        None => {
+            let last = cols.len() - 1;
+            d_cols[last] = d_blur;
+        }
+        Some(w) => {
+            for (q, &wq) in w.iter().enumerate() {
+                d_cols[q] = d_blur.map(|x| x * wq);
+                d_weights[q] = (0..3).map(|c| d_blur[c] * cols[q][c]).sum();
+            }
+        }
+    }
+    loss
+}
+
+/// One event pair's loss on one pass: with L = <luma, y> of the eCRF outputs y at t_j and t_k,
+/// `weight (log(L_k + eps) - log(L_j + eps) - p Theta)^2`.
+#[derive(Clone, Copy, Debug)]
+pub struct EventTerm<R> {
+    /// Luma weights (a one-hot channel for colour events).
+    pub luma: [R; 3],
+    /// Weight of the event (colour events: by channel).
+    pub weight: R,
+    /// Polarity of the successor event (+1 / -1).
+    pub polarity: i8,
+    /// Threshold of that polarity.
+    pub theta: R,
+    /// Offset of the log.
+    pub log_eps: R,
+}
+
+impl<R: Real> EventTerm<R> {
+    /// (loss, dL/dy_j, dL/dy_k), the gradients times `scale`.
+    pub fn loss(&self, yj: [R; 3], yk: [R; 3], scale: R) -> (R, [R; 3], [R; 3]) {
+        let l = |y: [R; 3]| (0..3).map(|c| self.luma[c] * y[c]).sum::<R>();
+        let (lj, lk) = (l(yj), l(yk));
+        let r = (lk + self.log_eps).ln() - (lj + self.log_eps).ln() - R::of(self.polarity as f64) * self.theta;
+        let dr = R::of(2.0) * self.weight * r * scale;
+        let (dlk, dlj) = (dr / (lk + self.log_eps), -dr / (lj + self.log_eps));
+        (self.weight * r * r, self.luma.map(|w| w * dlj), self.luma.map(|w| w * dlk))
+    }
+}
+
+/// The Bayer channel (RGGB) of a pixel: (even x, even y) R, (odd, odd) B, else G.
+pub fn bayer(x: f64, y: f64) -> u8 {
+    let (xi, yi) = (x.round() as i64, y.round() as i64);
+    match (xi.rem_euclid(2), yi.rem_euclid(2)) {
+        (0, 0) => 0,
+        (1, 1) => 2,
+        _ => 1,
+    }
+}
+
+/// dL/d(world origin), dL/d(world direction) of a warped ray from its renderer gradients:
+/// through the NDC warp and the view direction's normalisation.
+pub fn warped_ray_backward<R: Real>(k: &Intrinsics, world: &Ray, g: &RayGrad<R>) -> (DVec3, DVec3) {
+    let f = |a: [R; 3]| {
+        DVec3::new(a[0].to_f64().unwrap_or(0.0), a[1].to_f64().unwrap_or(0.0), a[2].to_f64().unwrap_or(0.0))
+    };
+    let (d_o, mut d_d) = ndc_ray_backward(k.width, k.height, k.focal, NDC_NEAR, world, f(g.origin), f(g.dir));
+    // v = d / |d|: dL/dd = (dL/dv - v (v . dL/dv)) / |d|.
+    let n = world.direction.length();
+    let v = world.direction / n;
+    let gv = f(g.viewdir);
+    d_d += (gv - v * v.dot(gv)) / n;
+    (d_o, d_d)
+}
+
+/// The event loss of the event groups among `groups` (rays from `r0` on in the worker's
+/// renderer): adds dL/dC (scaled by `scale` = weight / events) to the worker's `dc`/`df` and
+/// the eCRF's gradient to `g`; returns the unweighted loss summed over its events and passes.
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+fn event_losses(
+    wk: &mut Worker,
+    ecrf: Option<&Ecrf>,
+    p: &[f32],
+    g: &mut [f32],
+    groups: &[Group],
+    r0: usize,
+    threshold: [f32; 2],
+    luma: [f32; 3],
+    log_eps: f32,
+    scale: f32,
+) -> f64 {
+    let evs: Vec<(usize, i8, u8)> = groups
+        .iter()
+        .filter_map(|gr| match gr.kind {
+            Kind::Event { polarity, channel } => Some((gr.first - r0, polarity, channel)),
+            _ => None,
+        })
+        .collect();
+    if evs.is_empty() || scale == 0.0 {
+        return 0.0;
+    }
+    let m = 2 * evs.len();
+    let mut total = 0.0f64;
+    for pass in 0..2 {
+        let cols = if pass == 0 { wk.renderer.coarse() } else { wk.renderer.fine() };
+        wk.epol.clear();
+        for c in 0..3 {
+            wk.ex[c].clear();
+            for &(a, pol, _) in &evs {
+                wk.ex[c].extend([cols[a][c], cols[a + 1][c]]);
+                if c == 0 {
+                    wk.epol.extend([pol, pol]);
+                }
+            }
+            wk.ey[c].resize(m, 0.0);
+            match ecrf {
+                Some(e) => e.forward(p, c, &wk.ex[c], &wk.epol, &mut wk.ey[c], &mut wk.ecrf_ws[c]),
+                None => wk.ey[c].copy_from_slice(&wk.ex[c]),
+            }
+            wk.edy[c].clear();
+            wk.edy[c].resize(m, 0.0);
+        }
+        for (e, &(_, pol, channel)) in evs.iter().enumerate() {
+            let (weight, lum): (f32, [f32; 3]) = if channel < 3 {
+                let mut l = [0.0; 3];
+                l[channel as usize] = 1.0;
+                (COLOUR_WEIGHTS[channel as usize], l)
+            } else {
+                (1.0, luma)
+            };
+            let theta = if pol > 0 { threshold[0] } else { threshold[1] };
+            let y = |i: usize| [wk.ey[0][i], wk.ey[1][i], wk.ey[2][i]];
+            let t = EventTerm { luma: lum, weight, polarity: pol, theta, log_eps };
+            let (loss, dj, dk) = t.loss(y(2 * e), y(2 * e + 1), scale);
+            total += loss as f64;
+            for c in 0..3 {
+                wk.edy[c][2 * e] = dj[c];
+                wk.edy[c][2 * e + 1] = dk[c];
+            }
+        }
+        for c in 0..3 {
+            wk.edx.resize(m, 0.0);
+            match ecrf {
+                Some(e) => e.backward(p, g, c, &wk.edy[c], &mut wk.edx, &mut wk.ecrf_ws[c]),
+                None => wk.edx.copy_from_slice(&wk.edy[c]),
+            }
+            let dcol = if pass == 0 { &mut wk.dc } else { &mut wk.df };
+            for (e, &(a, _, _)) in evs.iter().enumerate() {
+                dcol[a][c] += wk.edx[2 * e];
+                dcol[a + 1][c] += wk.edx[2 * e + 1];
+            }
+        }
+    }
+    total
+}
+
+#[cfg(test)]
+#[path = "method_tests.rs"]
+mod tests;

@@ -1,0 +1,258 @@
+//! Finite-difference checks (f64) of the step's glue: the blur kernel's whole chain (heads ->
+//! twists -> rigid warp -> NDC -> renderer -> blurry colour -> response -> loss) back to the
+//! kernel's parameters, and the event term through the eCRF back to colours and eCRF
+//! parameters. The pieces are the functions `step` uses.
+
+use glam::{DQuat, DVec3};
+
+use super::*;
+use crate::blur::rigid::RigidConfig;
+use crate::data::rays::Intrinsics;
+use crate::engine::field::FieldShape;
+use crate::engine::model::{Aabb, ModelConfig, VolumeShape};
+use crate::events::ecrf::EcrfConfig;
+use simulator::trajectory::Pose;
+
+fn lcg(seed: u64) -> impl FnMut() -> f64 {
+    let mut s = seed;
+    move || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+fn tiny_model() -> ModelConfig {
+    let shape =
+        FieldShape { pe_pos: 2, pe_dir: 1, density_hidden: vec![6], features: 2, colour_hidden: vec![6], bias: true };
+    ModelConfig {
+        coarse_volume: VolumeShape { res: 6, comps: [2, 2, 1], features: 3 },
+        fine_volume: None,
+        coarse: shape,
+        fine: None,
+        n_coarse: 7,
+        n_fine: 5,
+        density_noise: 0.3,
+        tv_plane: 0.0,
+        tv_line: 0.0,
+        explicit: true,
+        bounds: Some(Aabb { min: [-1.2, -1.2, -1.0], max: [1.2, 1.2, 1.0] }),
+    }
+}
+
+const K: Intrinsics = Intrinsics { width: 40, height: 30, focal: 50.0 };
+
+/// The NDC chunk of world rays.
+type Columns = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[f64; 3]>);
+
+fn chunk_of(world: &[Ray]) -> Columns {
+    let mut cols = (Vec::new(), Vec::new(), Vec::new());
+    for r in world {
+        let n = K.ndc(r, NDC_NEAR);
+        cols.0.push(n.origin.to_array());
+        cols.1.push(n.direction.to_array());
+        cols.2.push(r.direction.normalize().to_array());
+    }
+    cols
+}
+
+#[test]
+fn blur_kernel_chain_matches_finite_differences() {
+    let model = Model::new(&tiny_model());
+    let mut layout = model.layout.clone();
+    let cfg = RigidConfig { k: 3, embedding: 4, hidden: 5, twist_scale: 0.1, init_scale: 1.0 };
+    let kernel = RigidKernel::new(&mut layout, &cfg, 2);
+    let mut params = layout.zeros::<f64>();
+    let field: Vec<f64> = model.init(4).iter().map(|&p| p as f64).collect();
+    params[..field.len()].copy_from_slice(&field);
+    // Larger grid values than the default init, so colours vary along the rays.
+    for p in &mut params[model.volumes[0].planes[0]..model.volumes[0].basis.w] {
+        *p *= 30.0;
+    }
+    kernel.init(&mut params, &mut lcg(5));
+    let mut u = lcg(6);
+    for p in &mut params[kernel.embeddings..kernel.embeddings + 2 * cfg.embedding] {
+        *p = u() - 0.5;
+    }
+    let pose = Pose { rotation: DQuat::from_rotation_y(0.1), position: DVec3::new(0.05, -0.1, 0.2) };
+    let pixel = K.ray(&pose, 14, 11);
+    let view = 1;
+    let target = [0.4, 0.55, 0.3];
+    let inv_gamma = 1.0 / 2.2;
+    // Rays of the kernel at `p`: the K warped ones, then the origin ray.
+    let rays_at = |p: &[f64]| -> (KernelOut<f64>, Vec<Ray>) {
+        let out = kernel.forward(p, view);
+        let mut world: Vec<Ray> = out
+            .twists
+            .iter()
+            .map(|&t| {
+                let m = se3::exp(t);
+                Ray {
+                    origin: DVec3::from_array(m.point(pixel.origin.to_array())),
+                    direction: DVec3::from_array(m.vector(pixel.direction.to_array())),
+                }
+            })
+            .collect();
+        world.push(pixel);
+        (out, world)
+    };
+    let (out, world) = rays_at(&params);
+    assert!(out.twists.iter().flatten().any(|x| x.abs() > 1e-3), "twists too small to test: {:?}", out.twists);
+    let (o, d, v) = chunk_of(&world);
+    let mut renderer = Renderer::<f64>::default();
+    let mut rngs: Vec<Rng> = (0..world.len()).map(|r| Rng::new(9, r as u64)).collect();
+    renderer.forward(&model, &params, &RayChunk { origins: &o, dirs: &d, viewdirs: &v }, Some(&mut rngs));
+    let loss_of = |r: &Renderer<f64>, w: &[f64], dc: &mut [[f64; 3]], df: &mut [[f64; 3]], dw: &mut [f64]| {
+        let mut dw2 = vec![0.0; w.len()];
+        let a = blur_loss(r.coarse(), Some(w), target, inv_gamma, 1.0, dc, dw);
+        let b = blur_loss(r.fine(), Some(w), target, inv_gamma, 1.0, df, &mut dw2);
+        for (x, y) in dw.iter_mut().zip(dw2) {
+            *x += y;
+        }
+        a + b
+    };
+    // Analytic: the step's chain.
+    let n = world.len();
+    let (mut dc, mut df, mut dw) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![0.0; n]);
+    loss_of(&renderer, &out.weights, &mut dc, &mut df, &mut dw);
+    let mut grads = layout.zeros::<f64>();
+    let mut d_rays = vec![RayGrad::zero(); n];
+    renderer.backward(
+        &model,
+        &params,
+        &mut grads,
+        &RayChunk { origins: &o, dirs: &d, viewdirs: &v },
+        &dc,
+        &df,
+        Some(&mut d_rays),
+    );
+    let d_twists: Vec<[f64; 6]> = (0..cfg.k)
+        .map(|q| {
+            let (dro, drd) = warped_ray_backward(&K, &world[q], &d_rays[q]);
+            let (mut d_r, mut d_t) = ([[0.0; 3]; 3], [0.0; 3]);
+            se3::warp_backward(
+                pixel.origin.to_array(),
+                pixel.direction.to_array(),
+                dro.to_array(),
+                drd.to_array(),
+                &mut d_r,
+                &mut d_t,
+            );
+            se3::exp_backward(out.twists[q], &d_r, &d_t)
+        })
+        .collect();
+    kernel.backward(&params, &mut grads, view, &out, &d_twists, &dw);
+    // Finite differences over the kernel's parameters, samples held fixed.
+    let mut replay = renderer.clone();
+    let mut loss_at = |p: &[f64]| {
+        let (out, world) = rays_at(p);
+        let (o, d, v) = chunk_of(&world);
+        replay.replay(&model, p, &RayChunk { origins: &o, dirs: &d, viewdirs: &v });
+        let (mut a, mut b, mut c) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n], vec![0.0; n]);
+        loss_of(&replay, &out.weights, &mut a, &mut b, &mut c)
+    };
+    let h = 1e-6;
+    let mut nonzero = 0;
+    for i in kernel.embeddings..layout.len() {
+        let (mut p, mut m) = (params.clone(), params.clone());
+        p[i] += h;
+        m[i] -= h;
+        let fd = (loss_at(&p) - loss_at(&m)) / (2.0 * h);
+        let name = &layout.tensors.iter().find(|t| t.range.contains(&i)).unwrap().name;
+        assert!(
+            (fd - grads[i]).abs() <= 2e-6 * (1.0 + fd.abs().max(grads[i].abs())),
+            "param {i} ({name}): finite difference {fd}, analytic {}",
+            grads[i]
+        );
+        nonzero += (grads[i].abs() > 1e-8) as usize;
+    }
+    // The twist heads and the embedding of the view all receive gradient through the rays.
+    for t in layout.tensors.iter().filter(|t| t.name.starts_with("rbk.rot") || t.name.starts_with("rbk.trans")) {
+        assert!(grads[t.range.clone()].iter().any(|g| g.abs() > 1e-8), "{} receives no gradient", t.name);
+    }
+    assert!(nonzero > (layout.len() - kernel.embeddings) / 3, "only {nonzero} kernel gradients are non-zero");
+}
+
+#[test]
+fn event_term_through_the_ecrf_matches_finite_differences() {
+    let mut layout = Layout::default();
+    for polarity_input in [true, false] {
+        let cfg = EcrfConfig { polarity: polarity_input, ..EcrfConfig::reference() };
+        let ecrf = Ecrf::new(&mut layout, &cfg);
+        let mut p32 = layout.zeros::<f32>();
+        ecrf.init(&mut p32, 3);
+        let mut u = lcg(11);
+        // Move off the identity so the MLP matters.
+        let params: Vec<f64> = p32.iter().map(|&x| x as f64 + 0.2 * (u() - 0.5)).collect();
+        for (colour, pol) in [(false, 1i8), (false, -1), (true, 1)] {
+            let cols = [[0.3, 0.5, 0.2], [0.35, 0.42, 0.25]];
+            let term = EventTerm {
+                luma: if colour { [0.0, 1.0, 0.0] } else { [0.299, 0.587, 0.114] },
+                weight: if colour { 0.2 } else { 1.0 },
+                polarity: pol,
+                theta: 0.2,
+                log_eps: 1e-5,
+            };
+            let pols = [pol, pol];
+            let forward = |p: &[f64], cols: &[[f64; 3]; 2], ws: &mut [EcrfWorkspace<f64>; 3]| -> ([[f64; 3]; 2], f64) {
+                let mut y = [[0.0; 3]; 2];
+                for c in 0..3 {
+                    let mut out = [0.0; 2];
+                    ecrf.forward(p, c, &[cols[0][c], cols[1][c]], &pols, &mut out, &mut ws[c]);
+                    y[0][c] = out[0];
+                    y[1][c] = out[1];
+                }
+                (y, term.loss(y[0], y[1], 1.0).0)
+            };
+            let mut ws: [EcrfWorkspace<f64>; 3] = Default::default();
+            let (y, _) = forward(&params, &cols, &mut ws);
+            let (_, dj, dk) = term.loss(y[0], y[1], 1.0);
+            let mut grads = layout.zeros::<f64>();
+            let mut d_cols = [[0.0; 3]; 2];
+            for c in 0..3 {
+                let mut dx = [0.0; 2];
+                ecrf.backward(&params, &mut grads, c, &[dj[c], dk[c]], &mut dx, &mut ws[c]);
+                d_cols[0][c] = dx[0];
+                d_cols[1][c] = dx[1];
+            }
+            let h = 1e-6;
+            let mut ws2: [EcrfWorkspace<f64>; 3] = Default::default();
+            for r in ecrf.ranges() {
+                for i in r {
+                    let (mut a, mut b) = (params.clone(), params.clone());
+                    a[i] += h;
+                    b[i] -= h;
+                    let fd = (forward(&a, &cols, &mut ws2).1 - forward(&b, &cols, &mut ws2).1) / (2.0 * h);
+                    assert!(
+                        (fd - grads[i]).abs() <= 1e-6 * (1.0 + fd.abs()),
+                        "eCRF param {i}: fd {fd} analytic {}",
+                        grads[i]
+                    );
+                }
+            }
+            for (e, c) in (0..2).flat_map(|e| (0..3).map(move |c| (e, c))) {
+                let (mut a, mut b) = (cols, cols);
+                a[e][c] += h;
+                b[e][c] -= h;
+                let fd = (forward(&params, &a, &mut ws2).1 - forward(&params, &b, &mut ws2).1) / (2.0 * h);
+                let an = d_cols[e][c];
+                assert!(
+                    (fd - an).abs() <= 1e-6 * (1.0 + fd.abs()),
+                    "colour {e}.{c} ({colour}, {pol}): fd {fd} analytic {an}"
+                );
+                if term.luma[c] != 0.0 {
+                    assert!(an.abs() > 1e-6, "colour {e}.{c} gets no gradient");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn blur_loss_without_a_kernel_is_the_plain_loss_and_bayer_follows_rggb() {
+    let cols = [[0.2f64, 0.3, 0.4]];
+    let (mut dc, mut dw) = ([[0.0; 3]], [0.0]);
+    let l = blur_loss(&cols, None, [0.5, 0.5, 0.5], 1.0, 1.0, &mut dc, &mut dw);
+    assert!((l - (0.09 + 0.04 + 0.01)).abs() < 1e-12);
+    assert!((dc[0][0] - 2.0 * -0.3).abs() < 1e-12);
+    assert_eq!([bayer(0.0, 0.0), bayer(1.0, 0.0), bayer(0.0, 1.0), bayer(1.0, 1.0), bayer(2.0, 4.0)], [0, 1, 1, 2, 0]);
+}

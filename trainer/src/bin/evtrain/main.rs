@@ -115,7 +115,7 @@ fn main() -> Result<()> {
         Cmd::Eval { run, threads } => eval(&run, threads),
         Cmd::Presets { show: None, .. } => {
             for p in presets::PRESETS {
-                println!("{:<14} {}", p.name, p.description);
+                println!("{:<16} {}", p.name, p.description);
             }
             Ok(())
         }

@@ -182,8 +182,17 @@ impl Field {
         }
     }
 
+    /// The features the density MLP gave sample `i` in the last forward on `ws` (what the
+    /// colour MLP reads; DP-NeRF's AWP integrates them along the ray).
+    pub fn features<'a, R: Real>(&self, ws: &'a FieldWorkspace<R>, i: usize) -> &'a [R] {
+        let (dc, nf) = (self.d_colour_in(), self.shape.features);
+        &ws.x_colour[i * dc..i * dc + nf]
+    }
+
     /// Backward of the last [`forward`](Self::forward) on `ws`: accumulates parameter gradients
-    /// into `grads`; when `d_pos` / `d_dir` are given, writes dL/dpos and dL/ddir into them.
+    /// into `grads`; `d_features` (p x features, optional) is a loss's direct gradient on the
+    /// [`features`](Self::features); when `d_pos` / `d_dir` are given, writes dL/dpos and
+    /// dL/ddir into them.
     #[allow(clippy::too_many_arguments)]
     pub fn backward<R: Real>(
         &self,
@@ -193,6 +202,7 @@ impl Field {
         pos: &[[R; 3]],
         d_sigma: &[R],
         d_rgb: &[[R; 3]],
+        d_features: Option<&[R]>,
         d_pos: Option<&mut [[R; 3]]>,
         d_dir: Option<&mut [[R; 3]]>,
     ) {
@@ -218,6 +228,11 @@ impl Field {
             ws.g_a[i * (1 + nf)] = d_sigma[i];
             let (src, dst) = (&ws.g_x[i * dc..i * dc + nf], i * (1 + nf) + 1);
             ws.g_a[dst..dst + nf].copy_from_slice(src);
+            if let Some(df) = d_features {
+                for (g, d) in ws.g_a[dst..dst + nf].iter_mut().zip(&df[i * nf..(i + 1) * nf]) {
+                    *g += *d;
+                }
+            }
         }
         mlp_backward(
             &self.density,

@@ -41,15 +41,36 @@ fn tiny_field(bias: bool, two_volumes: bool) -> (Field, Layout, Vec<f64>) {
     (field, layout, params)
 }
 
-/// Scalar test loss: fixed random weights on every output.
-fn loss(field: &Field, params: &[f64], pos: &[[f64; 3]], dir: &[[f64; 3]], ws: &mut FieldWorkspace<f64>) -> f64 {
+/// Scalar test loss: fixed random weights on every output (and, with `features`, on the
+/// density MLP's features).
+fn loss(
+    field: &Field,
+    params: &[f64],
+    pos: &[[f64; 3]],
+    dir: &[[f64; 3]],
+    ws: &mut FieldWorkspace<f64>,
+    features: bool,
+) -> f64 {
     let p = pos.len();
     let mut sigma = vec![0.0; p];
     let mut rgb = vec![[0.0; 3]; p];
     field.forward(params, ws, pos, dir, &mut sigma, &mut rgb);
     let (ws_, wr) = weights(p);
-    sigma.iter().zip(&ws_).map(|(a, b)| a * b).sum::<f64>()
-        + rgb.iter().zip(&wr).map(|(a, b)| a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).sum::<f64>()
+    let mut l = sigma.iter().zip(&ws_).map(|(a, b)| a * b).sum::<f64>()
+        + rgb.iter().zip(&wr).map(|(a, b)| a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).sum::<f64>();
+    if features {
+        let wf = feature_weights(p * field.shape.features);
+        for i in 0..p {
+            let f = field.features(ws, i);
+            l += f.iter().zip(&wf[i * f.len()..]).map(|(a, b)| a * b).sum::<f64>();
+        }
+    }
+    l
+}
+
+fn feature_weights(n: usize) -> Vec<f64> {
+    let mut r = Lcg(123);
+    (0..n).map(|_| r.uniform() - 0.5).collect()
 }
 
 fn weights(p: usize) -> (Vec<f64>, Vec<[f64; 3]>) {
@@ -72,7 +93,7 @@ fn inputs(p: usize) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
     (pos, dir)
 }
 
-fn check_field(bias: bool, two_volumes: bool) {
+fn check_field(bias: bool, two_volumes: bool, features: bool) {
     let (field, layout, params) = tiny_field(bias, two_volumes);
     let p = 7;
     let (pos, dir) = inputs(p);
@@ -84,7 +105,18 @@ fn check_field(bias: bool, two_volumes: bool) {
     let mut grads = layout.zeros::<f64>();
     let mut d_pos = vec![[0.0; 3]; p];
     let mut d_dir = vec![[0.0; 3]; p];
-    field.backward(&params, &mut grads, &mut ws, &pos, &d_sigma, &d_rgb, Some(&mut d_pos), Some(&mut d_dir));
+    let d_feat = features.then(|| feature_weights(p * field.shape.features));
+    field.backward(
+        &params,
+        &mut grads,
+        &mut ws,
+        &pos,
+        &d_sigma,
+        &d_rgb,
+        d_feat.as_deref(),
+        Some(&mut d_pos),
+        Some(&mut d_dir),
+    );
 
     let h = 1e-6;
     let close = |fd: f64, an: f64, what: &str| {
@@ -98,9 +130,9 @@ fn check_field(bias: bool, two_volumes: bool) {
     for i in 0..params.len() {
         let mut pp = params.clone();
         pp[i] += h;
-        let lp = loss(&field, &pp, &pos, &dir, &mut ws);
+        let lp = loss(&field, &pp, &pos, &dir, &mut ws, features);
         pp[i] -= 2.0 * h;
-        let lm = loss(&field, &pp, &pos, &dir, &mut ws);
+        let lm = loss(&field, &pp, &pos, &dir, &mut ws, features);
         let fd = (lp - lm) / (2.0 * h);
         let name = &layout.tensors.iter().find(|t| t.range.contains(&i)).unwrap().name;
         close(fd, grads[i], &format!("param {i} ({name})"));
@@ -116,9 +148,15 @@ fn check_field(bias: bool, two_volumes: bool) {
                 let mut xm = base.clone();
                 xm[s][a] -= h;
                 let (lp, lm) = if which == "pos" {
-                    (loss(&field, &params, &xp, &dir, &mut ws), loss(&field, &params, &xm, &dir, &mut ws))
+                    (
+                        loss(&field, &params, &xp, &dir, &mut ws, features),
+                        loss(&field, &params, &xm, &dir, &mut ws, features),
+                    )
                 } else {
-                    (loss(&field, &params, &pos, &xp, &mut ws), loss(&field, &params, &pos, &xm, &mut ws))
+                    (
+                        loss(&field, &params, &pos, &xp, &mut ws, features),
+                        loss(&field, &params, &pos, &xm, &mut ws, features),
+                    )
                 };
                 close((lp - lm) / (2.0 * h), an, &format!("d{which}[{s}][{a}]"));
                 assert!(an.abs() > 1e-9, "d{which}[{s}][{a}] is zero");
@@ -129,12 +167,17 @@ fn check_field(bias: bool, two_volumes: bool) {
 
 #[test]
 fn field_gradients_match_finite_differences_without_bias() {
-    check_field(false, false);
+    check_field(false, false, false);
+}
+
+#[test]
+fn field_gradients_match_finite_differences_with_a_loss_on_the_features() {
+    check_field(true, true, true);
 }
 
 #[test]
 fn field_gradients_match_finite_differences_with_bias_and_two_volumes() {
-    check_field(true, true);
+    check_field(true, true, false);
 }
 
 #[test]

@@ -128,9 +128,19 @@ impl<R: Real> Pass<R> {
             self.d_pos.resize(n, [R::zero(); 3]);
             self.d_dir.resize(n, [R::zero(); 3]);
             let (dp, dd) = (&mut self.d_pos[..], &mut self.d_dir[..]);
-            field.backward(params, grads, &mut self.ws, &self.pos, &self.d_sigma, &self.d_rgb, Some(dp), Some(dd));
+            field.backward(
+                params,
+                grads,
+                &mut self.ws,
+                &self.pos,
+                &self.d_sigma,
+                &self.d_rgb,
+                None,
+                Some(dp),
+                Some(dd),
+            );
         } else {
-            field.backward(params, grads, &mut self.ws, &self.pos, &self.d_sigma, &self.d_rgb, None, None);
+            field.backward(params, grads, &mut self.ws, &self.pos, &self.d_sigma, &self.d_rgb, None, None, None);
         }
     }
 

@@ -26,18 +26,23 @@ fn root() -> &'static Path {
     DIR.get_or_init(|| temp_dir("trainer", "runs"))
 }
 
-/// `scenes/tiny` at 32x24 and 1 spp (9 views: 0 and 8 test, 7 training), written once.
+/// `scenes/tiny` at 32x24 and 1 spp (9 views: 0 and 8 test, 7 training) with events of
+/// `sensor`, written into `name` under the test folder.
+fn write_tiny(name: &str, sensor: simulator::events::Sensor) -> PathBuf {
+    let toml = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/tiny/scene.toml");
+    let small =
+        Overrides { width: Some(32), height: Some(24), spp: Some(1), sharp_spp: Some(1), ..Overrides::default() };
+    let mut plan = Plan::resolve(&toml, &small).unwrap();
+    plan.events.sensor = sensor;
+    let out = root().join(name);
+    write_dataset(&plan, &RunOptions { out: out.clone(), ..RunOptions::default() }).unwrap();
+    out
+}
+
+/// The monochrome tiny dataset, written once.
 fn dataset_dir() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let toml = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/tiny/scene.toml");
-        let small =
-            Overrides { width: Some(32), height: Some(24), spp: Some(1), sharp_spp: Some(1), ..Overrides::default() };
-        let plan = Plan::resolve(&toml, &small).unwrap();
-        let out = root().join("tiny");
-        write_dataset(&plan, &RunOptions { out: out.clone(), ..RunOptions::default() }).unwrap();
-        out
-    })
+    DIR.get_or_init(|| write_tiny("tiny", simulator::events::Sensor::Mono))
 }
 
 fn load_opts() -> LoadOptions {
@@ -454,16 +459,7 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
 /// `scenes/tiny` as [`dataset_dir`] but with colour (RGGB) events, loaded once.
 fn rggb_dataset() -> &'static Dataset {
     static DATA: OnceLock<Dataset> = OnceLock::new();
-    DATA.get_or_init(|| {
-        let toml = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/tiny/scene.toml");
-        let small =
-            Overrides { width: Some(32), height: Some(24), spp: Some(1), sharp_spp: Some(1), ..Overrides::default() };
-        let mut plan = Plan::resolve(&toml, &small).unwrap();
-        plan.events.sensor = simulator::events::Sensor::Rggb;
-        let out = root().join("tiny-rggb");
-        write_dataset(&plan, &RunOptions { out: out.clone(), ..RunOptions::default() }).unwrap();
-        Dataset::load(&out, &load_opts()).unwrap()
-    })
+    DATA.get_or_init(|| Dataset::load(&write_tiny("tiny-rggb", simulator::events::Sensor::Rggb), &load_opts()).unwrap())
 }
 
 #[test]

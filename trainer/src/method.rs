@@ -498,17 +498,8 @@ pub fn step(
                     let base = view as usize * kstride;
                     for q in 0..gr.n - 1 {
                         let r = gr.first + q;
-                        let (dr, dt) = warped_ray_backward(&data.intrinsics, &batch_ref.world[r], &wk.d_rays[r - r0]);
-                        let mut d_r = [[0.0f64; 3]; 3];
-                        let mut d_t = [0.0f64; 3];
-                        se3::warp_backward(
-                            orig.origin.to_array(),
-                            orig.direction.to_array(),
-                            dr.to_array(),
-                            dt.to_array(),
-                            &mut d_r,
-                            &mut d_t,
-                        );
+                        let (d_r, d_t) =
+                            kernel_ray_backward(&data.intrinsics, &orig, &batch_ref.world[r], &wk.d_rays[r - r0]);
                         let kg = &mut wk.kgrad[base + 12 * q..base + 12 * q + 12];
                         for (i, row) in d_r.iter().enumerate() {
                             for (jx, v) in row.iter().enumerate() {
@@ -672,6 +663,27 @@ pub fn warped_ray_backward<R: Real>(k: &Intrinsics, world: &Ray, g: &RayGrad<R>)
     let gv = f(g.viewdir);
     d_d += (gv - v * v.dot(gv)) / n;
     (d_o, d_d)
+}
+
+/// dL/dR and dL/dt of the rigid motion that moved `original` to `warped`, from the warped
+/// ray's renderer gradients ([`warped_ray_backward`], then the rigid warp's backward).
+pub fn kernel_ray_backward<R: Real>(
+    k: &Intrinsics,
+    original: &Ray,
+    warped: &Ray,
+    g: &RayGrad<R>,
+) -> ([[f64; 3]; 3], [f64; 3]) {
+    let (d_o, d_d) = warped_ray_backward(k, warped, g);
+    let (mut d_r, mut d_t) = ([[0.0f64; 3]; 3], [0.0f64; 3]);
+    se3::warp_backward(
+        original.origin.to_array(),
+        original.direction.to_array(),
+        d_o.to_array(),
+        d_d.to_array(),
+        &mut d_r,
+        &mut d_t,
+    );
+    (d_r, d_t)
 }
 
 /// The event loss of the event groups among `groups` (rays from `r0` on in the worker's

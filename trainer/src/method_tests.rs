@@ -127,16 +127,7 @@ fn blur_kernel_chain_matches_finite_differences() {
     );
     let d_twists: Vec<[f64; 6]> = (0..cfg.k)
         .map(|q| {
-            let (dro, drd) = warped_ray_backward(&K, &world[q], &d_rays[q]);
-            let (mut d_r, mut d_t) = ([[0.0; 3]; 3], [0.0; 3]);
-            se3::warp_backward(
-                pixel.origin.to_array(),
-                pixel.direction.to_array(),
-                dro.to_array(),
-                drd.to_array(),
-                &mut d_r,
-                &mut d_t,
-            );
+            let (d_r, d_t) = kernel_ray_backward(&K, &pixel, &world[q], &d_rays[q]);
             se3::exp_backward(out.twists[q], &d_r, &d_t)
         })
         .collect();

@@ -112,11 +112,11 @@ fn checkpoint_bytes(run: &RunPaths) -> Vec<u8> {
 fn log_rows(run: &RunPaths) -> Vec<String> {
     let text = std::fs::read_to_string(run.log()).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("step,seconds,loss,psnr_batch,event_loss,edi_loss,psnr_test"));
+    assert_eq!(lines.next(), Some("step,seconds,loss,psnr_batch,event_loss,edi_loss,awp_loss,psnr_test"));
     lines
         .map(|l| {
             let mut cols: Vec<&str> = l.split(',').collect();
-            assert_eq!(cols.len(), 7, "{l}");
+            assert_eq!(cols.len(), 8, "{l}");
             cols.remove(1);
             cols.join(",")
         })
@@ -476,6 +476,8 @@ fn every_ablation_switch_trains_with_its_modules_active() {
         (&["events.inside_exposures=true"], false),
         (&["events.threshold=[0.3, 0.25]"], false),
         (&["events.colour=true"], true),
+        (&["blur.awp=none"], false),
+        (&["blur.awp.attention=false"], false),
     ];
     for (sets, rggb) in switches {
         let data = if *rggb { rggb_dataset() } else { dataset() };
@@ -491,6 +493,9 @@ fn every_ablation_switch_trains_with_its_modules_active() {
             assert!(r.loss.is_finite() && r.event_loss.is_finite() && r.edi_loss.is_finite(), "{sets:?}: {r:?}");
             assert_eq!(r.event_loss > 0.0, cfg.events.is_some(), "{sets:?}: event loss {}", r.event_loss);
             assert_eq!(r.edi_loss > 0.0, cfg.edi.is_some(), "{sets:?}: EDI loss {}", r.edi_loss);
+            // The AWP's colour loss is logged from the kernel's start (step 10) on.
+            let awp_on = cfg.blur.as_ref().is_some_and(|b| b.awp.is_some()) && r.step > 10;
+            assert_eq!(r.awp_loss > 0.0, awp_on, "{sets:?}: step {} AWP loss {}", r.step, r.awp_loss);
         }
         let (first, last) = (
             mean(&rows[..3].iter().map(|r| r.loss).collect::<Vec<_>>()),
@@ -509,6 +514,9 @@ fn every_ablation_switch_trains_with_its_modules_active() {
         };
         assert!(moved("rbk.rot") && moved("rbk.embedding"), "{sets:?}: the blur kernel did not learn");
         assert_eq!(moved("ecrf"), cfg.ecrf.is_some(), "{sets:?}: eCRF learning");
+        let awp = cfg.blur.as_ref().and_then(|b| b.awp.as_ref());
+        assert_eq!(moved("awp.sample") && moved("awp.out"), awp.is_some(), "{sets:?}: AWP learning");
+        assert_eq!(moved("awp.attention"), awp.is_some_and(|a| a.attention), "{sets:?}: AWP attention");
         assert_eq!(moved("coarse.vm"), cfg.model.explicit, "{sets:?}: volumes");
         // A run evaluates end to end (origin ray only).
         let s = evaluate(data, &t.method.model, &t.params, &cfg, 2, None).unwrap();

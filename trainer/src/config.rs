@@ -1,6 +1,7 @@
 //! Training configuration: everything a run needs besides the dataset, as one serde struct that
 //! a preset builds and a run folder records (`config.toml`). Unknown keys are rejected.
 
+use crate::blur::awp::AwpConfig;
 use crate::blur::rigid::RigidConfig;
 use crate::engine::adam::AdamConfig;
 use crate::engine::model::ModelConfig;
@@ -66,6 +67,9 @@ pub struct BlurConfig {
     pub kernel: RigidConfig,
     /// First iteration that renders the warped rays (reference: 1200; before it, one plain ray).
     pub start: u64,
+    /// The adaptive weight proposal (`None`: the kernel's weights only). Active with the kernel.
+    #[serde(default)]
+    pub awp: Option<AwpConfig>,
 }
 
 /// The event loss, event by event (module `trainer::method`).
@@ -166,6 +170,9 @@ impl TrainConfig {
                 if !(v.is_finite() && v >= 0.0) {
                     return Err(format!("{name} = {v}; it must be a finite number >= 0"));
                 }
+            }
+            if let Some(a) = &b.awp {
+                a.validate()?;
             }
         }
         if let Some(e) = &self.events {

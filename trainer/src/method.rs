@@ -20,6 +20,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
+use crate::blur::awp::{Awp, AwpWorkspace};
 use crate::blur::rigid::{KernelOut, RigidKernel};
 use crate::blur::se3::{self, Rigid};
 use crate::config::{ImageSource, TrainConfig};
@@ -54,6 +55,8 @@ pub struct Method {
     pub kernel: Option<RigidKernel>,
     /// The event camera response.
     pub ecrf: Option<Ecrf>,
+    /// The adaptive weight proposal (with the kernel).
+    pub awp: Option<Awp>,
 }
 
 impl Method {
@@ -62,7 +65,12 @@ impl Method {
         let mut model = Model::new(&cfg.model);
         let kernel = cfg.blur.as_ref().map(|b| RigidKernel::new(&mut model.layout, &b.kernel, views));
         let ecrf = cfg.ecrf.as_ref().map(|c| Ecrf::new(&mut model.layout, c));
-        Method { model, kernel, ecrf }
+        let awp = cfg.blur.as_ref().and_then(|b| {
+            let a = b.awp.as_ref()?;
+            let features = model.fine_field().shape.features;
+            Some(Awp::new(&mut model.layout, a, b.kernel.k + 1, features, b.kernel.embedding))
+        });
+        Method { model, kernel, ecrf, awp }
     }
 
     /// The layout of every parameter.
@@ -79,6 +87,10 @@ impl Method {
         }
         if let Some(e) = &self.ecrf {
             e.init(&mut params, seed);
+        }
+        if let Some(a) = &self.awp {
+            let mut rng = Rng::new(seed, 0xa3b);
+            a.init(&mut params, &mut || rng.uniform_f64());
         }
         params
     }
@@ -248,8 +260,12 @@ pub struct Worker {
     edy: [Vec<f32>; 3],
     edx: Vec<f32>,
     epol: Vec<i8>,
-    /// Kernel gradients per view: K x (dR 9 + dt 3), then K + 1 weight gradients.
+    /// Kernel gradients per view: K x (dR 9 + dt 3), then K + 1 weight gradients, then (with
+    /// the AWP) the embedding's gradient from the AWP.
     kgrad: Vec<f64>,
+    awp_ws: AwpWorkspace<f32>,
+    /// dL/d features of the chunk's last pass (from the AWP).
+    dfeat: Vec<f32>,
 }
 
 /// Buffers reused across steps.
@@ -278,6 +294,9 @@ pub struct StepLosses {
     pub event: f64,
     /// EDI loss (both passes, mean over pixels and channels, unweighted).
     pub edi: f64,
+    /// AWP colour loss (fine pass, mean over the kernel's pixels and channels, unweighted; 0
+    /// without the AWP or before the kernel starts).
+    pub awp: f64,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -285,6 +304,7 @@ struct Sums {
     image: [f64; 2],
     event: f64,
     edi: f64,
+    awp: f64,
 }
 
 /// The batch of one step: rays (NDC, and their world form) and groups.
@@ -397,7 +417,12 @@ pub fn step(
     let ev_scale = evc.map_or(0.0, |e| e.weight as f32) / batch.events.max(1) as f32;
     let edi_scale = edi_w as f32 * img_scale;
     let k_rays = method.kernel.as_ref().map_or(0, |k| k.config.k);
-    let kstride = 12 * k_rays + k_rays + 1;
+    let awp = method.awp.as_ref().filter(|_| blur_on);
+    let mix = awp.map_or(0.0, |a| a.config.mix_at(step)) as f32;
+    // The image loss mixes the kernel's colours and the AWP's: (1 - l) [coarse + fine] + l awp.
+    let blur_scale = img_scale * (1.0 - mix);
+    let emb_dim = awp.map_or(0, |a| a.embedding);
+    let kstride = 12 * k_rays + k_rays + 1 + emb_dim;
     let n_views = data.views.len();
     let luma = evc.and_then(|e| e.luma).unwrap_or(BT601).map(|x| x as f32);
     let log_eps = evc.and_then(|e| e.log_eps).unwrap_or(1e-5) as f32;
@@ -434,6 +459,7 @@ pub fn step(
             wk.df.clear();
             wk.df.resize(n, [0.0; 3]);
             let mut any_kernel = false;
+            let mut any_awp = false;
             for gr in &groups[g0..g1] {
                 let Kind::Image { view, target, edi } = gr.kind else { continue };
                 let (a, m) = (gr.first - r0, gr.n);
@@ -445,12 +471,13 @@ pub fn step(
                         if pass == 0 { (wk.renderer.coarse(), &mut wk.dc) } else { (wk.renderer.fine(), &mut wk.df) };
                     let weights = kernel.map(|vk| &vk.out.weights[..]);
                     let mut dw = [0.0f32; MAX_RAYS];
+                    let scale = if kernel.is_some() { blur_scale } else { img_scale };
                     sums.image[pass] += blur_loss(
                         &cols[a..a + m],
                         weights,
                         target,
                         inv_gamma,
-                        img_scale,
+                        scale,
                         &mut dcol[a..a + m],
                         &mut dw[..m],
                     ) as f64;
@@ -467,6 +494,42 @@ pub fn step(
                             sums.edi += (e * e) as f64 / (3 * batch_ref.pixels.max(1)) as f64;
                             dcol[origin][c] += 2.0 * e * dg * edi_scale;
                         }
+                    }
+                }
+                // The AWP's colour: its weights over the fine colours of the same rays.
+                if let (Some(awp), true) = (awp, kernel.is_some() && mix > 0.0) {
+                    let ps = wk.renderer.last_pass(model);
+                    let (s, nf) = (ps.per_ray, ps.width);
+                    if !any_awp {
+                        wk.dfeat.clear();
+                        wk.dfeat.resize(n * s * nf, 0.0);
+                        any_awp = true;
+                    }
+                    let feats = &ps.features[a * s * ps.stride..];
+                    let om = &ps.weights[a * s..(a + m) * s];
+                    let e0 = method.kernel.as_ref().expect("kernel").embeddings + view as usize * emb_dim;
+                    let dir = batch_ref.rays[gr.first + m - 1].viewdir;
+                    awp.forward(p, &mut wk.awp_ws, feats, ps.stride, s, om, &p[e0..e0 + emb_dim], dir);
+                    let (mut d_cols, mut dw) = ([[0.0f32; 3]; MAX_RAYS], [0.0f32; MAX_RAYS]);
+                    sums.awp += blur_loss(
+                        &wk.renderer.fine()[a..a + m],
+                        Some(&wk.awp_ws.weights),
+                        target,
+                        inv_gamma,
+                        mix * img_scale,
+                        &mut d_cols[..m],
+                        &mut dw[..m],
+                    ) as f64;
+                    for (d, dc) in wk.df[a..a + m].iter_mut().zip(&d_cols) {
+                        for c in 0..3 {
+                            d[c] += dc[c];
+                        }
+                    }
+                    awp.backward(p, g, &mut wk.awp_ws, feats, ps.stride, om, &dw[..m]);
+                    wk.dfeat[a * s * nf..(a + m) * s * nf].copy_from_slice(&wk.awp_ws.d_features);
+                    let base = view as usize * kstride + 13 * k_rays + 1;
+                    for (k, d) in wk.awp_ws.d_embedding.iter().enumerate() {
+                        wk.kgrad[base + k] += *d as f64;
                     }
                 }
             }
@@ -487,7 +550,8 @@ pub fn step(
                 wk.d_rays.resize(n, RayGrad::zero());
             }
             let d_rays = if with_rays { Some(&mut wk.d_rays[..n]) } else { None };
-            wk.renderer.backward(model, p, g, &chunk, &wk.dc, &wk.df, d_rays);
+            let d_feat = if any_awp { Some(&wk.dfeat[..]) } else { None };
+            wk.renderer.backward(model, p, g, &chunk, &wk.dc, &wk.df, d_rays, d_feat);
             if with_rays {
                 for gr in &groups[g0..g1] {
                     let Kind::Image { view, .. } = gr.kind else { continue };
@@ -536,6 +600,10 @@ pub fn step(
                 })
                 .collect();
             let d_weights: Vec<f32> = (0..=k_rays).map(|q| total(12 * k_rays + q) as f32).collect();
+            let e0 = kernel.embeddings + v * emb_dim;
+            for k in 0..emb_dim {
+                grads[e0 + k] += total(13 * k_rays + 1 + k) as f32;
+            }
             kernel.backward(params, grads, v, &vk.out, &d_twists, &d_weights);
         }
     }
@@ -551,6 +619,7 @@ pub fn step(
         image: [a.image[0] + b.image[0], a.image[1] + b.image[1]],
         event: a.event + b.event,
         edi: a.edi + b.edi,
+        awp: a.awp + b.awp,
     });
     model.tv(params, grads);
     adam.step(&cfg.adam, &model.layout, params, grads);
@@ -560,6 +629,7 @@ pub fn step(
         psnr: -10.0 * (s.image[1] / np).log10(),
         event: s.event / batch.events.max(1) as f64,
         edi: s.edi,
+        awp: s.awp / np,
     }
 }
 

@@ -124,6 +124,7 @@ fn blur_kernel_chain_matches_finite_differences() {
         &dc,
         &df,
         Some(&mut d_rays),
+        None,
     );
     let d_twists: Vec<[f64; 6]> = (0..cfg.k)
         .map(|q| {

@@ -8,6 +8,7 @@
 //!   64 + 64 samples, 1024 rays, 30 k iterations, lr 5e-3 decayed 10x per 10 k steps.
 //! - `cpu`: sized for 2 cores and about 20 minutes (see [`cpu_model`] for the choices and why).
 
+use crate::blur::awp::AwpConfig;
 use crate::blur::rigid::RigidConfig;
 use crate::config::{BlurConfig, EventLossConfig, ImageSource, TrainConfig};
 use crate::engine::adam::AdamConfig;
@@ -62,7 +63,7 @@ pub const PRESETS: &[Preset] = &[
     },
     Preset {
         name: "ev-deblurnerf",
-        description: "Ev-DeblurNeRF: rigid blur kernel, event loss, eCRF and EDI prior (full method)",
+        description: "Ev-DeblurNeRF: rigid blur kernel + AWP, event loss, eCRF and EDI prior (full method)",
         build: ev_deblurnerf,
     },
     Preset {
@@ -190,6 +191,13 @@ pub fn rigid_reference() -> RigidConfig {
     RigidConfig { k: 9, embedding: 32, hidden: 32, twist_scale: 0.1, init_scale: 0.01 }
 }
 
+/// The 2-core AWP: the sample-embedding MLP at 2 x 32 instead of 4 x 64 (each pixel runs it on
+/// (K + 1) x 96 samples; at the reference size it would cost more than the field), the mixing
+/// schedule's steps scaled like the kernel start (10 k x 8000 / 30 000).
+pub fn cpu_awp() -> AwpConfig {
+    AwpConfig { sample_hidden: vec![32, 32], mix_every: 2667, ..AwpConfig::reference() }
+}
+
 /// Ev-DeblurNeRF (full). Paper scale: the reference settings (kernel and eCRF from iteration
 /// 1200, 4096 events per batch, EDI 0.01 cosine-decayed to 1e-5 over 10 k steps). Cpu scale:
 /// the `nerf` cpu field and budget (8000 iterations); per iteration 256 pixels x 6 rays (K = 5
@@ -203,7 +211,7 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
     let edi = EdiConfig::reference_synthetic();
     match scale {
         Scale::Paper => TrainConfig {
-            blur: Some(BlurConfig { kernel: rigid_reference(), start: 1200 }),
+            blur: Some(BlurConfig { kernel: rigid_reference(), start: 1200, awp: Some(AwpConfig::reference()) }),
             events: Some(EventLossConfig::reference()),
             ecrf: Some(EcrfConfig::reference()),
             edi: Some(edi),
@@ -212,7 +220,11 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
         Scale::Cpu => TrainConfig {
             batch_rays: 256,
             chunk_rays: 12,
-            blur: Some(BlurConfig { kernel: RigidConfig { k: 5, ..rigid_reference() }, start: 320 }),
+            blur: Some(BlurConfig {
+                kernel: RigidConfig { k: 5, ..rigid_reference() },
+                start: 320,
+                awp: Some(cpu_awp()),
+            }),
             events: Some(EventLossConfig { batch: 512, ..EventLossConfig::reference() }),
             ecrf: Some(EcrfConfig { start: 320, ..EcrfConfig::reference() }),
             edi: Some(EdiConfig::reference_real()),

@@ -159,6 +159,8 @@ pub struct LogRow {
     pub event_loss: f64,
     /// EDI loss of the step (unweighted; 0 without the prior).
     pub edi_loss: f64,
+    /// AWP colour loss of the step (unweighted; 0 without the AWP or before the kernel starts).
+    pub awp_loss: f64,
     /// Mean test-view PSNR, when evaluated at this step.
     pub psnr_test: Option<f64>,
 }
@@ -306,6 +308,7 @@ impl<'a> Trainer<'a> {
                 psnr_batch: psnr,
                 event_loss: l.event,
                 edi_loss: l.edi,
+                awp_loss: l.awp,
                 psnr_test: None,
             };
             let eval_now = self.cfg.eval_every > 0 && self.step.is_multiple_of(self.cfg.eval_every);
@@ -396,7 +399,7 @@ pub fn image_step(
                     d.push(grad);
                 }
             }
-            renderer.backward(model, p, g, &chunk, &dc, &df, None);
+            renderer.backward(model, p, g, &chunk, &dc, &df, None, None);
         }
         sums
     });
@@ -418,7 +421,7 @@ struct LogFile {
 }
 
 impl LogFile {
-    const HEADER: &'static str = "step,seconds,loss,psnr_batch,event_loss,edi_loss,psnr_test\n";
+    const HEADER: &'static str = "step,seconds,loss,psnr_batch,event_loss,edi_loss,awp_loss,psnr_test\n";
 
     fn open(run: &RunPaths, step: u64) -> Result<LogFile, TrainError> {
         let path = run.log();
@@ -438,8 +441,8 @@ impl LogFile {
     fn push(&mut self, r: &LogRow) -> Result<(), TrainError> {
         let test = r.psnr_test.map_or(String::new(), |p| format!("{p:.4}"));
         self.text.push_str(&format!(
-            "{},{:.3},{:.6},{:.4},{:.6},{:.6},{}\n",
-            r.step, r.seconds, r.loss, r.psnr_batch, r.event_loss, r.edi_loss, test
+            "{},{:.3},{:.6},{:.4},{:.6},{:.6},{:.6},{}\n",
+            r.step, r.seconds, r.loss, r.psnr_batch, r.event_loss, r.edi_loss, r.awp_loss, test
         ));
         if r.psnr_test.is_some() || r.step.is_multiple_of(50) {
             self.flush()?;

@@ -8,7 +8,7 @@
 //! [`FieldWorkspace`] (rows = samples), so a forward + backward over a chunk allocates nothing.
 
 use super::encoding;
-use super::mlp::{Act, Dense};
+use super::mlp::{backward_stack, forward_stack, Act, Dense};
 use super::params::Layout;
 use super::real::Real;
 use super::vm::VmVolume;
@@ -164,7 +164,7 @@ impl Field {
         for (i, x) in pos.iter().enumerate() {
             encoding::encode(*x, self.shape.pe_pos, &mut ws.x_density[i * dd + col..i * dd + col + pw]);
         }
-        mlp_forward(&self.density, params, p, &ws.x_density, &mut ws.h_density);
+        forward_stack(&self.density, params, p, &ws.x_density, self.d_density_in(), &mut ws.h_density);
         // Features (after the raw density) and PE(d) form the colour input.
         let nf = self.shape.features;
         let dc = self.d_colour_in();
@@ -175,7 +175,7 @@ impl Field {
             ws.x_colour[i * dc..i * dc + nf].copy_from_slice(&out[i * (1 + nf) + 1..(i + 1) * (1 + nf)]);
             encoding::encode(dir[i], self.shape.pe_dir, &mut ws.x_colour[i * dc + nf..i * dc + nf + dw]);
         }
-        mlp_forward(&self.colour, params, p, &ws.x_colour, &mut ws.h_colour);
+        forward_stack(&self.colour, params, p, &ws.x_colour, self.d_colour_in(), &mut ws.h_colour);
         let c = ws.h_colour.last().expect("colour MLP has an output layer");
         for i in 0..p {
             rgb[i] = [c[3 * i], c[3 * i + 1], c[3 * i + 2]];
@@ -187,6 +187,12 @@ impl Field {
     pub fn features<'a, R: Real>(&self, ws: &'a FieldWorkspace<R>, i: usize) -> &'a [R] {
         let (dc, nf) = (self.d_colour_in(), self.shape.features);
         &ws.x_colour[i * dc..i * dc + nf]
+    }
+
+    /// Every sample's [`features`](Self::features) in the last forward on `ws`: (rows, stride);
+    /// sample i's are `rows[i * stride..i * stride + features]`.
+    pub fn feature_rows<'a, R: Real>(&self, ws: &'a FieldWorkspace<R>) -> (&'a [R], usize) {
+        (&ws.x_colour, self.d_colour_in())
     }
 
     /// Backward of the last [`forward`](Self::forward) on `ws`: accumulates parameter gradients
@@ -214,7 +220,17 @@ impl Field {
         for i in 0..p {
             ws.g_a[3 * i..3 * i + 3].copy_from_slice(&d_rgb[i]);
         }
-        mlp_backward(&self.colour, params, grads, p, &ws.x_colour, &ws.h_colour, &mut ws.g_a, &mut ws.g_b, &mut ws.g_x);
+        backward_stack(
+            &self.colour,
+            params,
+            grads,
+            p,
+            (&ws.x_colour, dc),
+            &ws.h_colour,
+            &mut ws.g_a,
+            &mut ws.g_b,
+            &mut ws.g_x,
+        );
         // ws.g_x now holds dL/d x_colour (p x dc).
         if let Some(d_dir) = d_dir {
             let dw = encoding::width(self.shape.pe_dir);
@@ -234,12 +250,12 @@ impl Field {
                 }
             }
         }
-        mlp_backward(
+        backward_stack(
             &self.density,
             params,
             grads,
             p,
-            &ws.x_density,
+            (&ws.x_density, dd),
             &ws.h_density,
             &mut ws.g_a,
             &mut ws.g_b,
@@ -281,40 +297,6 @@ impl Field {
                 }
             }
             col += v.n_features();
-        }
-    }
-}
-
-/// Forward through a stack of layers: `h[0] = l0(x)`, `h[i] = li(h[i-1])`.
-fn mlp_forward<R: Real>(layers: &[Dense], params: &[R], p: usize, x: &[R], h: &mut [Vec<R>]) {
-    for (i, l) in layers.iter().enumerate() {
-        let (before, after) = h.split_at_mut(i);
-        let input: &[R] = if i == 0 { x } else { &before[i - 1] };
-        l.forward(params, p, input, l.n_in, &mut after[0], l.n_out);
-    }
-}
-
-/// Backward through a stack: `g_out` holds dL/d(last output) on entry; on return `g_x` holds
-/// dL/dx (p x n_in of the first layer). `g_out` and `g_tmp` are scratch.
-#[allow(clippy::too_many_arguments)]
-fn mlp_backward<R: Real>(
-    layers: &[Dense],
-    params: &[R],
-    grads: &mut [R],
-    p: usize,
-    x: &[R],
-    h: &[Vec<R>],
-    g_out: &mut Vec<R>,
-    g_tmp: &mut Vec<R>,
-    g_x: &mut Vec<R>,
-) {
-    for i in (0..layers.len()).rev() {
-        let l = &layers[i];
-        let input: &[R] = if i == 0 { x } else { &h[i - 1] };
-        let target: &mut Vec<R> = if i == 0 { g_x } else { g_tmp };
-        l.backward(params, grads, p, input, l.n_in, &h[i], g_out, l.n_out, Some((&mut target[..], l.n_in, R::zero())));
-        if i > 0 {
-            std::mem::swap(g_out, g_tmp);
         }
     }
 }

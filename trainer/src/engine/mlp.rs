@@ -169,3 +169,39 @@ impl Dense {
         }
     }
 }
+
+/// Forward through a stack of layers: `h[0] = l0(x)` (x: p rows of stride `ldx`),
+/// `h[i] = li(h[i-1])`; each `h[i]` is p x n_out, contiguous.
+pub fn forward_stack<R: Real>(layers: &[Dense], params: &[R], p: usize, x: &[R], ldx: usize, h: &mut [Vec<R>]) {
+    for (i, l) in layers.iter().enumerate() {
+        let (before, after) = h.split_at_mut(i);
+        let (input, ld): (&[R], usize) = if i == 0 { (x, ldx) } else { (&before[i - 1], l.n_in) };
+        l.forward(params, p, input, ld, &mut after[0], l.n_out);
+    }
+}
+
+/// Backward through a stack run by [`forward_stack`] on `x` = (rows, stride): `g_out` holds
+/// dL/d(last output) on entry; on return `g_x` holds dL/dx (p x n_in of the first layer,
+/// contiguous). `g_out` and `g_tmp` are scratch.
+#[allow(clippy::too_many_arguments)]
+pub fn backward_stack<R: Real>(
+    layers: &[Dense],
+    params: &[R],
+    grads: &mut [R],
+    p: usize,
+    x: (&[R], usize),
+    h: &[Vec<R>],
+    g_out: &mut Vec<R>,
+    g_tmp: &mut Vec<R>,
+    g_x: &mut Vec<R>,
+) {
+    for i in (0..layers.len()).rev() {
+        let l = &layers[i];
+        let (input, ld): (&[R], usize) = if i == 0 { x } else { (&h[i - 1], l.n_in) };
+        let target: &mut Vec<R> = if i == 0 { g_x } else { g_tmp };
+        l.backward(params, grads, p, input, ld, &h[i], g_out, l.n_out, Some((&mut target[..], l.n_in, R::zero())));
+        if i > 0 {
+            std::mem::swap(g_out, g_tmp);
+        }
+    }
+}

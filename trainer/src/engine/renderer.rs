@@ -122,7 +122,14 @@ impl<R: Real> Pass<R> {
 
     /// The field's backward; with `with_rays`, also the per-sample position and direction
     /// gradients.
-    fn field_backward(&mut self, field: &Field, params: &[R], grads: &mut [R], with_rays: bool) {
+    fn field_backward(
+        &mut self,
+        field: &Field,
+        params: &[R],
+        grads: &mut [R],
+        with_rays: bool,
+        d_features: Option<&[R]>,
+    ) {
         if with_rays {
             let n = self.pos.len();
             self.d_pos.resize(n, [R::zero(); 3]);
@@ -135,12 +142,12 @@ impl<R: Real> Pass<R> {
                 &self.pos,
                 &self.d_sigma,
                 &self.d_rgb,
-                None,
+                d_features,
                 Some(dp),
                 Some(dd),
             );
         } else {
-            field.backward(params, grads, &mut self.ws, &self.pos, &self.d_sigma, &self.d_rgb, None, None, None);
+            field.backward(params, grads, &mut self.ws, &self.pos, &self.d_sigma, &self.d_rgb, d_features, None, None);
         }
     }
 
@@ -187,6 +194,22 @@ impl<R: Real> RayGrad<R> {
 
 fn norm<R: Real>(d: [R; 3]) -> R {
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
+/// The samples of one pass over a chunk (rows ray-major: ray r's samples are rows
+/// `r * per_ray .. (r + 1) * per_ray`).
+#[derive(Clone, Copy, Debug)]
+pub struct PassSamples<'a, R> {
+    /// Samples per ray.
+    pub per_ray: usize,
+    /// Per-sample features of the density MLP: row i starts at `i * stride`, `width` values.
+    pub features: &'a [R],
+    /// Row stride of `features`.
+    pub stride: usize,
+    /// Features per sample.
+    pub width: usize,
+    /// Render weights of the samples (one per row).
+    pub weights: &'a [R],
 }
 
 /// Reusable state for rendering chunks of rays (one per thread).
@@ -294,10 +317,27 @@ impl<R: Real> Renderer<R> {
         }
     }
 
+    /// The samples of the last pass (the fine one, or the only one) of the last forward, for
+    /// losses on per-sample features (AWP).
+    pub fn last_pass<'a>(&'a self, model: &'a Model) -> PassSamples<'a, R> {
+        let (pass, field) =
+            if self.fine_pass { (&self.fine, model.fine_field()) } else { (&self.coarse, &model.coarse) };
+        let (rows, stride) = field.feature_rows(&pass.ws);
+        PassSamples {
+            per_ray: pass.s,
+            features: rows,
+            stride,
+            width: field.shape.features,
+            weights: &pass.weights[..self.rays * pass.s],
+        }
+    }
+
     /// Backward of the last [`forward`](Self::forward): accumulates the parameter gradients of
     /// a loss with dL/dC `d_coarse` and `d_fine` (one per ray) into `grads`. With `d_rays`,
     /// also writes each ray's input gradients (for blur models that move rays); sample depths
-    /// are held fixed (sampling is not differentiated).
+    /// are held fixed (sampling is not differentiated). `d_features` (rays x samples x
+    /// features, contiguous) is a loss's direct gradient on the last pass's features
+    /// ([`last_pass`](Self::last_pass)).
     #[allow(clippy::too_many_arguments)]
     pub fn backward(
         &mut self,
@@ -308,6 +348,7 @@ impl<R: Real> Renderer<R> {
         d_coarse: &[[R; 3]],
         d_fine: &[[R; 3]],
         mut d_rays: Option<&mut [RayGrad<R>]>,
+        d_features: Option<&[R]>,
     ) {
         let rays = self.rays;
         let with_rays = d_rays.is_some();
@@ -320,7 +361,7 @@ impl<R: Real> Renderer<R> {
                 d_coarse.iter().zip(d_fine).map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]).collect();
             let c = &mut self.coarse;
             c.render_backward(chunk, rays, &d, self.train);
-            c.field_backward(&model.coarse, params, grads, with_rays);
+            c.field_backward(&model.coarse, params, grads, with_rays, d_features);
             if let Some(out) = d_rays {
                 c.add_ray_grads(chunk, rays, out);
             }
@@ -328,13 +369,13 @@ impl<R: Real> Renderer<R> {
         }
         let f = &mut self.fine;
         f.render_backward(chunk, rays, d_fine, self.train);
-        f.field_backward(model.fine_field(), params, grads, with_rays);
+        f.field_backward(model.fine_field(), params, grads, with_rays, d_features);
         if let Some(out) = d_rays.as_deref_mut() {
             f.add_ray_grads(chunk, rays, out);
         }
         let c = &mut self.coarse;
         c.render_backward(chunk, rays, d_coarse, self.train);
-        c.field_backward(&model.coarse, params, grads, with_rays);
+        c.field_backward(&model.coarse, params, grads, with_rays, None);
         if let Some(out) = d_rays {
             c.add_ray_grads(chunk, rays, out);
         }

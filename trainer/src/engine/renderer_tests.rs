@@ -1,6 +1,7 @@
 //! Finite-difference check (f64) of the whole chunk renderer: sample placement, both fields,
 //! both volume renderings and the routing of dL/dC back to every parameter, with the sample
-//! depths and density noise held fixed (they are not differentiated).
+//! depths and density noise held fixed (they are not differentiated); also a direct loss on the
+//! last pass's per-sample features (the AWP's input).
 
 use super::field::FieldShape;
 use super::model::{Model, ModelConfig, VolumeShape};
@@ -31,6 +32,10 @@ fn tiny_config(two_levels: bool) -> ModelConfig {
     }
 }
 
+fn feature_weight(i: usize, c: usize) -> f64 {
+    0.05 * ((i * 7 + c * 3) as f64 * 0.9).sin()
+}
+
 fn check(two_levels: bool) {
     let model = Model::new(&tiny_config(two_levels));
     // Larger grid values than the default init, so densities and colours vary along the rays.
@@ -55,11 +60,20 @@ fn check(two_levels: bool) {
         let dot = |a: &[[f64; 3]], w: &[[f64; 3]; 3]| -> f64 {
             a.iter().zip(w).map(|(x, y)| x[0] * y[0] + x[1] * y[1] + x[2] * y[2]).sum()
         };
-        dot(r.coarse(), &wc) + dot(r.fine(), &wf)
+        // A direct loss on the last pass's per-sample features (what the AWP reads).
+        let ps = r.last_pass(&model);
+        let feat: f64 = (0..ps.weights.len())
+            .flat_map(|i| (0..ps.width).map(move |c| (i, c)))
+            .map(|(i, c)| feature_weight(i, c) * ps.features[i * ps.stride + c])
+            .sum();
+        dot(r.coarse(), &wc) + dot(r.fine(), &wf) + feat
     };
+    let ps = renderer.last_pass(&model);
+    let d_features: Vec<f64> =
+        (0..ps.weights.len()).flat_map(|i| (0..ps.width).map(move |c| feature_weight(i, c))).collect();
     let mut grads = model.layout.zeros::<f64>();
     let mut d_rays = vec![RayGrad::zero(); 3];
-    renderer.backward(&model, &params, &mut grads, &chunk, &wc, &wf, Some(&mut d_rays));
+    renderer.backward(&model, &params, &mut grads, &chunk, &wc, &wf, Some(&mut d_rays), Some(&d_features));
     let h = 1e-6;
     let mut replay = renderer.clone();
     let mut checked = 0;

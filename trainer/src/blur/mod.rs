@@ -1,8 +1,11 @@
 //! Blur models (issue 7 onwards). What lives where:
 //! - [`awp`]: DP-NeRF's adaptive weight proposal (blending weights from what the rays see).
+//! - [`dsk`]: Deblur-NeRF's deformable sparse kernel (per-pixel ray offsets, origin shifts and
+//!   weights from an MLP over the image embedding, kernel point and pixel position).
 //! - [`rigid`]: DP-NeRF's rigid blurring kernel heads (per-image twists and blending weights).
 //! - [`se3`]: the exponential map of se(3) twists to rigid motions, and its backward.
 
 pub mod awp;
+pub mod dsk;
 pub mod rigid;
 pub mod se3;

@@ -16,6 +16,7 @@ use trainer::config::{ImageSource, TrainConfig};
 use trainer::data::dataset::{Dataset, LoadOptions};
 use trainer::engine::model::Model;
 use trainer::eval::evaluate;
+use trainer::method::StepData;
 use trainer::metrics::{self, ImageRef};
 use trainer::presets::{self, Preset, Scale, PRESETS};
 use trainer::train::{response, LogRow, RunPaths, TrainOptions, Trainer};
@@ -129,14 +130,15 @@ fn mean(v: &[f64]) -> f64 {
 
 /// The loss (both passes) and the mean test-view PSNR of a model that renders black (every
 /// colour at the response floor): what training first converges to on this dark scene.
-fn black_baseline(cfg: &TrainConfig) -> (f64, f64) {
+fn black_baseline(cfg: &TrainConfig, step_data: &StepData) -> (f64, f64) {
     let d = dataset();
     let black = response(0.0, (1.0 / cfg.response_gamma) as f32).0;
     let (mut sum, mut count) = (0.0, 0usize);
     for &v in &d.split.train {
-        let img = match cfg.images {
-            ImageSource::Blurry => &d.views[v].image,
-            ImageSource::Sharp => d.views[v].sharp.as_ref().unwrap(),
+        let img = match (&step_data.targets[v], &cfg.images) {
+            (Some(t), _) => t,
+            (None, ImageSource::Sharp) => d.views[v].sharp.as_ref().unwrap(),
+            (None, _) => &d.views[v].image,
         };
         sum += img.data.iter().map(|&y| ((black - y) as f64).powi(2)).sum::<f64>();
         count += img.data.len();
@@ -162,9 +164,9 @@ fn every_preset_learns_in_a_short_run_and_scores_the_test_views() {
     assert!(!PRESETS.is_empty());
     for p in PRESETS {
         let cfg = small(p, STEPS);
-        let (black_loss, black_psnr) = black_baseline(&cfg);
         let run = run_dir(&format!("smoke-{}", p.name));
         let mut t = Trainer::new(dataset(), cfg.clone(), None).unwrap_or_else(|e| panic!("{}: {e}", p.name));
+        let (black_loss, black_psnr) = black_baseline(&cfg, &t.step_data);
         let rows = t.train(&run, &TrainOptions::default()).unwrap_or_else(|e| panic!("{}: {e}", p.name));
         assert_eq!(rows.iter().map(|r| r.step).collect::<Vec<_>>(), (1..=STEPS).collect::<Vec<_>>(), "{}", p.name);
         let loss: Vec<f64> = rows.iter().map(|r| r.loss).collect();
@@ -546,4 +548,46 @@ fn the_ecrf_is_held_at_its_start_until_its_start_iteration() {
     for x in t.method.layout().tensors.iter().filter(|x| x.name.starts_with("ecrf") || x.name.starts_with("rbk")) {
         assert_eq!(t.params[x.range.clone()], before[x.range.clone()], "{} changed before its start", x.name);
     }
+}
+
+#[test]
+fn an_external_deblurring_command_supplies_the_training_images_cached_and_checked() {
+    let d = dataset();
+    let run = run_dir("deblur-command");
+    let count = run.dir.join("count");
+    let views = d.split.train.clone();
+    // An identity "network" that counts its calls: the images are the blurry ones, computed
+    // once per view and reused while the command and the inputs stay the same.
+    let cmd = format!("cp {{input}} {{output}} && echo x >> '{}'", count.display());
+    let calls = || std::fs::read_to_string(&count).map_or(0, |s| s.lines().count());
+    let images = trainer::deblur::deblur_views(d, &views, &cmd, Some(&run.dir)).unwrap();
+    assert_eq!(calls(), views.len());
+    for (img, &v) in images.iter().zip(&views) {
+        assert_eq!(img, &d.views[v].image);
+    }
+    trainer::deblur::deblur_views(d, &views, &cmd, Some(&run.dir)).unwrap();
+    assert_eq!(calls(), views.len(), "cached images were recomputed");
+    // A run trains on them end to end.
+    let mut cfg = small(nerf(), 4);
+    cfg.images = ImageSource::Deblur(cmd.clone());
+    let mut t = Trainer::new_in(d, cfg, None, Some(&run.dir)).unwrap();
+    assert!(t.step_data.targets.iter().filter(|t| t.is_some()).count() == views.len());
+    t.train(&run, &TrainOptions::default()).unwrap();
+    // A failing command and a wrong-size output are refused, naming the file and the command.
+    let e = trainer::deblur::deblur_views(d, &views, "false {input} {output}", Some(&run.dir)).unwrap_err().to_string();
+    assert!(e.contains("images_1") && e.contains("deblurring command") && e.contains("failed"), "{e}");
+    let other = &d.views[d.split.test[0]].name;
+    let wrong =
+        format!("echo {{input}} > /dev/null && cp '{}' {{output}}", d.dir.join("images_1").join(other).display());
+    // Same size (another view of the dataset): accepted; a different size is refused.
+    trainer::deblur::deblur_views(d, &views[..1], &wrong, Some(&run.dir)).unwrap();
+    let small_png = run.dir.join("small.png");
+    image::RgbImage::new(3, 2).save(&small_png).unwrap();
+    let resize = format!("echo {{input}} > /dev/null && cp '{}' {{output}}", small_png.display());
+    let e = trainer::deblur::deblur_views(d, &views[..1], &resize, Some(&run.dir)).unwrap_err().to_string();
+    assert!(e.contains("3x2") && e.contains("keep the image size"), "{e}");
+    // A command without its placeholders is refused by the configuration check.
+    let mut cfg = small(nerf(), 4);
+    cfg.images = ImageSource::Deblur("deblur.sh".into());
+    assert!(cfg.validate().unwrap_err().contains("{input}"));
 }

@@ -2,20 +2,29 @@
 //! a preset builds and a run folder records (`config.toml`). Unknown keys are rejected.
 
 use crate::blur::awp::AwpConfig;
+use crate::blur::dsk::DskConfig;
 use crate::blur::rigid::RigidConfig;
+use crate::blur::trajectory::TrajectoryConfig;
 use crate::engine::adam::AdamConfig;
 use crate::engine::model::ModelConfig;
 use crate::events::ecrf::EcrfConfig;
 use crate::events::edi::EdiConfig;
 
 /// Which images supervise the colour.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ImageSource {
     /// The blurry training views of `images_1/`.
     Blurry,
     /// The sharp renders of the same views from `images_sharp_1/` (the upper bound).
     Sharp,
+    /// The blurry views deblurred by the event double integral (EDI) from their exposure's
+    /// events (`edi-nerf`; the settings of `[edi]` if present, else 8 bins).
+    Edi,
+    /// The blurry views deblurred by an external program before training (images in, images
+    /// out): a shell command with `{input}` (the view's PNG in `images_1/`) and `{output}` (the
+    /// PNG it must write, same size), e.g. `images = { deblur = "python mprnet.py {input} {output}" }`.
+    Deblur(String),
 }
 
 /// A whole training run's settings.
@@ -59,17 +68,25 @@ pub struct TrainConfig {
     pub edi: Option<EdiConfig>,
 }
 
-/// The rigid blurring kernel and when it starts.
+/// The blur model (exactly one of `kernel`, `dsk`, `trajectory`) and when it starts.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BlurConfig {
-    /// The kernel's shape.
-    pub kernel: RigidConfig,
-    /// First iteration that renders the warped rays (reference: 1200; before it, one plain ray).
+    /// DP-NeRF's rigid blurring kernel.
+    #[serde(default)]
+    pub kernel: Option<RigidConfig>,
+    /// First iteration that renders the blur model's rays (reference: 1200; before it, one
+    /// plain ray).
     pub start: u64,
-    /// The adaptive weight proposal (`None`: the kernel's weights only). Active with the kernel.
+    /// The adaptive weight proposal on the rigid kernel (`None`: the kernel's weights only).
     #[serde(default)]
     pub awp: Option<AwpConfig>,
+    /// Deblur-NeRF's deformable sparse kernel.
+    #[serde(default)]
+    pub dsk: Option<DskConfig>,
+    /// Virtual cameras inside the exposure (BAD-NeRF learned, E2NeRF fixed).
+    #[serde(default)]
+    pub trajectory: Option<TrajectoryConfig>,
 }
 
 /// The event loss, event by event (module `trainer::method`).
@@ -113,6 +130,11 @@ impl EventLossConfig {
 }
 
 impl TrainConfig {
+    /// Whether training reads the dataset's events (event loss, EDI prior or EDI images).
+    pub fn needs_events(&self) -> bool {
+        self.events.is_some() || self.edi.is_some() || self.images == ImageSource::Edi
+    }
+
     /// Checks values a preset or a hand-edited `config.toml` could get wrong; the message names
     /// the field and the fix.
     pub fn validate(&self) -> Result<(), String> {
@@ -153,26 +175,54 @@ impl TrainConfig {
                 return Err(format!("{name} = {b}; it must be in [0, 1]"));
             }
         }
-        if let Some(b) = &self.blur {
-            if b.kernel.k == 0 || b.kernel.embedding == 0 || b.kernel.hidden == 0 {
-                return Err("blur.kernel: k, embedding and hidden must be >= 1".into());
-            }
-            if b.kernel.k + 1 > crate::method::MAX_RAYS {
+        if let ImageSource::Deblur(cmd) = &self.images {
+            if !(cmd.contains("{input}") && cmd.contains("{output}")) {
                 return Err(format!(
-                    "blur.kernel.k = {}; at most {} warped rays",
-                    b.kernel.k,
-                    crate::method::MAX_RAYS - 1
+                    "images.deblur = {cmd:?}; the command must contain {{input}} and {{output}} (the blurry PNG it reads and the PNG it writes)"
                 ));
             }
-            for (name, v) in
-                [("blur.kernel.twist_scale", b.kernel.twist_scale), ("blur.kernel.init_scale", b.kernel.init_scale)]
-            {
-                if !(v.is_finite() && v >= 0.0) {
-                    return Err(format!("{name} = {v}; it must be a finite number >= 0"));
+        }
+        if let Some(b) = &self.blur {
+            let models = [b.kernel.is_some(), b.dsk.is_some(), b.trajectory.is_some()];
+            if models.iter().filter(|&&m| m).count() != 1 {
+                return Err(
+                    "blur: set exactly one of blur.kernel, blur.dsk and blur.trajectory (or blur = none)".into()
+                );
+            }
+            if let Some(k) = &b.kernel {
+                if k.k == 0 || k.embedding == 0 || k.hidden == 0 {
+                    return Err("blur.kernel: k, embedding and hidden must be >= 1".into());
+                }
+                if k.k + 1 > crate::method::MAX_RAYS {
+                    return Err(format!(
+                        "blur.kernel.k = {}; at most {} warped rays",
+                        k.k,
+                        crate::method::MAX_RAYS - 1
+                    ));
+                }
+                for (name, v) in [("blur.kernel.twist_scale", k.twist_scale), ("blur.kernel.init_scale", k.init_scale)]
+                {
+                    if !(v.is_finite() && v >= 0.0) {
+                        return Err(format!("{name} = {v}; it must be a finite number >= 0"));
+                    }
                 }
             }
             if let Some(a) = &b.awp {
+                if b.kernel.is_none() {
+                    return Err(
+                        "blur.awp refines the rigid kernel's weights; set blur.kernel or blur.awp = none".into()
+                    );
+                }
                 a.validate()?;
+            }
+            if let Some(d) = &b.dsk {
+                d.validate()?;
+                if d.k + 1 > crate::method::MAX_RAYS {
+                    return Err(format!("blur.dsk.k = {}; at most {} kernel points", d.k, crate::method::MAX_RAYS - 1));
+                }
+            }
+            if let Some(t) = &b.trajectory {
+                t.validate()?;
             }
         }
         if let Some(e) = &self.events {
@@ -280,6 +330,11 @@ mod tests {
         assert!(e.colour && e.threshold == Some([0.3, 0.25]));
         assert!(c.ecrf.is_none() && !c.model.explicit);
         assert_eq!(sets(&["iterations=12"]).unwrap().iterations, 12);
+        // The training images: EDI-deblurred, or an external program's.
+        assert_eq!(sets(&["images=edi"]).unwrap().images, ImageSource::Edi);
+        let c = sets(&[r#"images={deblur="mprnet {input} {output}"}"#]).unwrap();
+        assert_eq!(c.images, ImageSource::Deblur("mprnet {input} {output}".into()));
+        assert!(sets(&[r#"images={deblur="mprnet"}"#]).unwrap_err().contains("{output}"));
         for (bad, says) in [
             (&["events.colur=true"][..], "colur"),
             (&["ecrf=none", "ecrf.polarity=false"][..], "`ecrf` is not in this configuration"),

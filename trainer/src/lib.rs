@@ -7,8 +7,9 @@
 //! - [`config`]: a run's settings; [`presets`]: the registry of named methods.
 //! - [`method`]: one training step of any method (blur kernel, event loss, eCRF, EDI);
 //!   [`train`]: the training loop; [`checkpoint`]: saved states; [`eval`]: test-view scores.
-//! - [`blur`]: blur models (so far the se(3) exponential map of the rigid blurring kernel).
+//! - [`blur`]: blur models (rigid kernel, AWP, the se(3) exponential map).
 //! - [`events`]: event supervision: the eCRF and the EDI prior.
+//! - [`deblur`]: pluggable image deblurring before training (a command per view, cached).
 //! - [`metrics`]: PSNR and SSIM of images as scikit-image computes them ([`metrics::ImageRef`]).
 #![warn(missing_docs)]
 
@@ -17,6 +18,7 @@ pub mod blur;
 pub mod checkpoint;
 pub mod config;
 pub mod data;
+pub mod deblur;
 pub mod engine;
 pub mod error;
 pub mod eval;

@@ -21,10 +21,12 @@ use std::path::Path;
 use glam::DVec3;
 
 use crate::blur::awp::{Awp, AwpWorkspace};
+use crate::blur::dsk::{Dsk, DskWorkspace};
 use crate::blur::rigid::{KernelOut, RigidKernel};
 use crate::blur::se3::{self, Rigid};
+use crate::blur::trajectory::Trajectory;
 use crate::config::{ImageSource, TrainConfig};
-use crate::data::dataset::Dataset;
+use crate::data::dataset::{Dataset, View};
 use crate::data::image::RgbImage;
 use crate::data::rays::{ndc_ray_backward, Intrinsics, Ray};
 use crate::engine::adam::Adam;
@@ -37,6 +39,7 @@ use crate::engine::rng::Rng;
 use crate::error::TrainError;
 use crate::events::ecrf::{Ecrf, EcrfWorkspace};
 use crate::train::{prepare, response, scene_bounds, unzip, PreparedRay, NDC_NEAR};
+use simulator::trajectory::Pose;
 
 /// The reference luma of monochrome events (BT.601), used when the dataset does not say.
 pub const BT601: [f64; 3] = [0.299, 0.587, 0.114];
@@ -45,14 +48,44 @@ pub const REC709: [f64; 3] = [0.2126, 0.7152, 0.0722];
 /// Weights of colour events by Bayer channel (R, G, B), as the reference.
 pub const COLOUR_WEIGHTS: [f32; 3] = [0.4, 0.2, 0.4];
 
-/// A method's parameters: the radiance field, then (when configured) the blur kernel and the
-/// eCRF, all in one layout (one parameter vector, one Adam, one checkpoint).
+/// A blur model's parameters (module `crate::blur`).
+#[derive(Clone, Debug)]
+pub enum Blur {
+    /// DP-NeRF's rigid blurring kernel (embeddings for every view of the dataset).
+    Rigid(RigidKernel),
+    /// Virtual cameras inside the exposure (BAD-NeRF learned, E2NeRF fixed).
+    Trajectory(Trajectory),
+    /// Deblur-NeRF's deformable sparse kernel.
+    Dsk(Dsk),
+}
+
+impl Blur {
+    /// Rays per blurry pixel (besides the origin ray).
+    pub fn rays(&self) -> usize {
+        match self {
+            Blur::Rigid(k) => k.config.k,
+            Blur::Trajectory(t) => t.config.k,
+            Blur::Dsk(d) => d.config.k,
+        }
+    }
+
+    /// The rigid kernel, if this is one.
+    pub fn rigid(&self) -> Option<&RigidKernel> {
+        match self {
+            Blur::Rigid(k) => Some(k),
+            _ => None,
+        }
+    }
+}
+
+/// A method's parameters: the radiance field, then (when configured) the blur model, the eCRF
+/// and the AWP, all in one layout (one parameter vector, one Adam, one checkpoint).
 #[derive(Clone, Debug)]
 pub struct Method {
     /// The radiance field (its layout holds every parameter of the method).
     pub model: Model,
-    /// The rigid blurring kernel (embeddings for every view of the dataset).
-    pub kernel: Option<RigidKernel>,
+    /// The blur model.
+    pub blur: Option<Blur>,
     /// The event camera response.
     pub ecrf: Option<Ecrf>,
     /// The adaptive weight proposal (with the kernel).
@@ -63,14 +96,22 @@ impl Method {
     /// The parameters of `cfg` for a dataset of `views` views.
     pub fn new(cfg: &TrainConfig, views: usize) -> Method {
         let mut model = Model::new(&cfg.model);
-        let kernel = cfg.blur.as_ref().map(|b| RigidKernel::new(&mut model.layout, &b.kernel, views));
+        let blur = cfg.blur.as_ref().map(|b| {
+            let l = &mut model.layout;
+            match (&b.kernel, &b.dsk, &b.trajectory) {
+                (Some(k), _, _) => Blur::Rigid(RigidKernel::new(l, k, views)),
+                (None, Some(d), _) => Blur::Dsk(Dsk::new(l, d, views)),
+                (None, None, Some(t)) => Blur::Trajectory(Trajectory::new(l, t, views)),
+                (None, None, None) => unreachable!("validated: one blur model"),
+            }
+        });
         let ecrf = cfg.ecrf.as_ref().map(|c| Ecrf::new(&mut model.layout, c));
         let awp = cfg.blur.as_ref().and_then(|b| {
-            let a = b.awp.as_ref()?;
+            let (a, k) = (b.awp.as_ref()?, b.kernel.as_ref()?);
             let features = model.fine_field().shape.features;
-            Some(Awp::new(&mut model.layout, a, b.kernel.k + 1, features, b.kernel.embedding))
+            Some(Awp::new(&mut model.layout, a, k.k + 1, features, k.embedding))
         });
-        Method { model, kernel, ecrf, awp }
+        Method { model, blur, ecrf, awp }
     }
 
     /// The layout of every parameter.
@@ -81,9 +122,11 @@ impl Method {
     /// Fresh parameters from `seed` (the field as `Model::init`, then the kernel and the eCRF).
     pub fn init(&self, seed: u64) -> Vec<f32> {
         let mut params = self.model.init(seed);
-        if let Some(k) = &self.kernel {
-            let mut rng = Rng::new(seed, 0x1419);
-            k.init(&mut params, &mut || rng.uniform_f64());
+        let mut rng = Rng::new(seed, 0x1419);
+        match &self.blur {
+            Some(Blur::Rigid(k)) => k.init(&mut params, &mut || rng.uniform_f64()),
+            Some(Blur::Dsk(d)) => d.init(&mut params, &mut || rng.uniform_f64()),
+            Some(Blur::Trajectory(_)) | None => {} // twists start at zero: the dataset's poses
         }
         if let Some(e) = &self.ecrf {
             e.init(&mut params, seed);
@@ -161,10 +204,14 @@ pub struct StepData {
     pub candidates: Vec<u32>,
     /// EDI targets per view (display-referred), for the training views.
     pub edi: Vec<Option<RgbImage>>,
+    /// Replacement training images per view (EDI- or command-deblurred, display-referred);
+    /// `None`: the dataset's.
+    pub targets: Vec<Option<RgbImage>>,
 }
 
 impl StepData {
-    /// Prepares the event candidates and the EDI targets (cached in `cache`, when given).
+    /// Prepares the event candidates, the EDI targets and the deblurred training images (cached
+    /// under the run folder `cache`, when given).
     pub fn new(
         data: &Dataset,
         cfg: &TrainConfig,
@@ -189,13 +236,17 @@ impl StepData {
                 });
             }
         }
-        let mut edi = vec![None; data.views.len()];
-        if let Some(d) = &cfg.edi {
+        let edi_images = |bins: usize| -> Result<Vec<RgbImage>, TrainError> {
             let [on, off] = event_thresholds(cfg, data);
-            let images = match cache {
-                Some(dir) => {
-                    crate::events::edi::precompute(data, &train_views, d.bins, (on, off), cfg.response_gamma, dir)?
-                }
+            Ok(match cache {
+                Some(dir) => crate::events::edi::precompute(
+                    data,
+                    &train_views,
+                    bins,
+                    (on, off),
+                    cfg.response_gamma,
+                    &dir.join("edi"),
+                )?,
                 None => train_views
                     .iter()
                     .map(|&v| {
@@ -205,18 +256,34 @@ impl StepData {
                             &data.events,
                             w,
                             h,
-                            d.bins,
+                            bins,
                             (on, off),
                             cfg.response_gamma,
                         )
                     })
                     .collect(),
-            };
+            })
+        };
+        let per_view = |images: Vec<RgbImage>| {
+            let mut out = vec![None; data.views.len()];
             for (&v, img) in train_views.iter().zip(images) {
-                edi[v] = Some(img);
+                out[v] = Some(img);
             }
-        }
-        Ok(StepData { train_views, candidates, edi })
+            out
+        };
+        let edi = match &cfg.edi {
+            Some(d) => per_view(edi_images(d.bins)?),
+            None => vec![None; data.views.len()],
+        };
+        let targets = match &cfg.images {
+            ImageSource::Edi => match &cfg.edi {
+                Some(_) => edi.clone(),
+                None => per_view(edi_images(crate::events::edi::EdiConfig::reference_real().bins)?),
+            },
+            ImageSource::Deblur(command) => per_view(crate::deblur::deblur_views(data, &train_views, command, cache)?),
+            ImageSource::Blurry | ImageSource::Sharp => vec![None; data.views.len()],
+        };
+        Ok(StepData { train_views, candidates, edi, targets })
     }
 }
 
@@ -234,8 +301,9 @@ fn event_thresholds(cfg: &TrainConfig, data: &Dataset) -> [f64; 2] {
 
 #[derive(Clone, Copy, Debug)]
 enum Kind {
-    /// A pixel of `view`: target colour and EDI target (NaN: none).
-    Image { view: u32, target: [f32; 3], edi: [f32; 3] },
+    /// Pixel (`i`, `j`) of `view`: target colour and EDI target (NaN: none); `slot` is its
+    /// index among the view's pixels of the step (the DSK's batch).
+    Image { view: u32, i: u32, j: u32, slot: u32, target: [f32; 3], edi: [f32; 3] },
     /// An event pair (two rays: t_j, t_k) with the successor's polarity; channel 3 = luma.
     Event { polarity: i8, channel: u8 },
 }
@@ -266,6 +334,10 @@ pub struct Worker {
     awp_ws: AwpWorkspace<f32>,
     /// dL/d features of the chunk's last pass (from the AWP).
     dfeat: Vec<f32>,
+    /// Per-pixel kernel gradients (DSK): for each group in `pgrad_groups`, K x (d offset 2,
+    /// d origin 3, d weight 1).
+    pgrad: Vec<f64>,
+    pgrad_groups: Vec<u32>,
 }
 
 /// Buffers reused across steps.
@@ -307,20 +379,129 @@ struct Sums {
     awp: f64,
 }
 
-/// The batch of one step: rays (NDC, and their world form) and groups.
+/// The batch of one step: rays (NDC, their world form and blending weight) and groups.
 struct Batch {
     rays: Vec<PreparedRay>,
     world: Vec<Ray>,
+    /// Each ray's weight in its pixel's blurry colour (unused for plain pixels and events).
+    weights: Vec<f32>,
     groups: Vec<Group>,
     pixels: usize,
     events: usize,
 }
 
-/// One view's kernel in this step.
+impl Batch {
+    fn push(&mut self, data: &Dataset, ray: Ray, weight: f32) {
+        self.rays.push(prepare(data, &ray));
+        self.world.push(ray);
+        self.weights.push(weight);
+    }
+}
+
+/// What a group of the step is, before its rays are made.
+#[derive(Clone, Copy, Debug)]
+enum Pick {
+    Pixel { v: usize, i: u32, j: u32, slot: u32 },
+    Event { j: usize, k: usize },
+}
+
+/// One view's blur model in this step.
 struct ViewKernel {
-    out: KernelOut<f32>,
+    /// The rigid kernel's output (twists and K + 1 weights).
+    rigid: Option<KernelOut<f32>>,
+    /// Twists of the K rays (rigid kernel, learned trajectory).
     twists: Vec<[f64; 6]>,
+    /// Their world-frame motions.
     motions: Vec<Rigid>,
+    /// Poses of the K virtual cameras (fixed trajectory).
+    poses: Vec<Pose>,
+    /// The DSK's kernels of the view's pixels, in slot order.
+    dsk: Option<DskWorkspace<f32>>,
+    /// Rays per pixel.
+    k: usize,
+}
+
+impl ViewKernel {
+    /// The model of view `v` whose batch pixels (slot order, pixel centres) are `pixels`.
+    fn new(blur: &Blur, params: &[f32], data: &Dataset, v: usize, pixels: &[[f32; 2]], noise: &mut Rng) -> ViewKernel {
+        let mut vk = ViewKernel {
+            rigid: None,
+            twists: Vec::new(),
+            motions: Vec::new(),
+            poses: Vec::new(),
+            dsk: None,
+            k: blur.rays(),
+        };
+        match blur {
+            Blur::Rigid(kernel) => {
+                let out = kernel.forward(params, v);
+                vk.twists = out.twists.iter().map(|t| t.map(|x| x as f64)).collect();
+                vk.rigid = Some(out);
+            }
+            Blur::Trajectory(t) if t.config.learned => vk.twists = t.twists(params, v),
+            Blur::Trajectory(t) => {
+                let view = &data.views[v];
+                vk.poses = (0..t.config.k)
+                    .map(|k| {
+                        let time = view.t_start_us + t.tau(k) * (view.t_end_us - view.t_start_us);
+                        data.trajectory.pose_at(time).unwrap_or(view.pose)
+                    })
+                    .collect();
+            }
+            Blur::Dsk(dsk) => {
+                let k = dsk.config.k;
+                let jitter: Vec<[f32; 2]> =
+                    (0..pixels.len() * k).map(|_| [noise.normal_f32(), noise.normal_f32()]).collect();
+                let size = [data.intrinsics.width as f32, data.intrinsics.height as f32];
+                let mut ws = DskWorkspace::default();
+                dsk.forward(params, &mut ws, v, pixels, size, Some(&jitter));
+                vk.dsk = Some(ws);
+            }
+        }
+        vk.motions = vk.twists.iter().map(|&t| se3::exp(t)).collect();
+        vk
+    }
+
+    /// Pushes the K rays of pixel (`i`, `j`) (world ray `ray`, DSK slot `slot`) with their
+    /// weights; returns the origin ray's weight.
+    #[allow(clippy::too_many_arguments)]
+    fn rays(&self, data: &Dataset, view: &View, ray: &Ray, i: u32, j: u32, slot: usize, batch: &mut Batch) -> f32 {
+        match (&self.rigid, &self.dsk, self.poses.is_empty()) {
+            (Some(out), _, _) => {
+                for (m, &w) in self.motions.iter().zip(&out.weights) {
+                    batch.push(data, warp(m, ray), w);
+                }
+                out.weights[self.motions.len()]
+            }
+            (None, Some(ws), _) => {
+                let k = self.k;
+                for q in slot * k..(slot + 1) * k {
+                    let (o, t) = (ws.offsets[q].map(f64::from), ws.origins[q].map(f64::from));
+                    batch.push(data, dsk_ray(&data.intrinsics, &view.pose, i, j, o, t), ws.weights[q]);
+                }
+                0.0
+            }
+            (None, None, false) => {
+                let w = 1.0 / self.poses.len() as f32;
+                for pose in &self.poses {
+                    batch.push(data, data.intrinsics.ray(pose, i, j), w);
+                }
+                0.0
+            }
+            (None, None, true) => {
+                let w = 1.0 / self.motions.len() as f32;
+                for m in &self.motions {
+                    batch.push(data, warp(m, ray), w);
+                }
+                0.0
+            }
+        }
+    }
+}
+
+/// `ray` moved by the world-frame rigid motion `m`.
+fn warp(m: &Rigid, ray: &Ray) -> Ray {
+    Ray { origin: to_dvec(m.point(ray.origin.to_array())), direction: to_dvec(m.vector(ray.direction.to_array())) }
 }
 
 fn to_dvec(v: [f64; 3]) -> DVec3 {
@@ -341,10 +522,9 @@ pub fn step(
 ) -> StepLosses {
     let model = &method.model;
     let (w, h) = (data.intrinsics.width, data.intrinsics.height);
-    let blur_on = method.kernel.is_some() && cfg.blur.as_ref().is_some_and(|b| step >= b.start);
-    // Kernels of the views of this step (computed on first use).
-    let mut kernels: Vec<Option<ViewKernel>> = (0..data.views.len()).map(|_| None).collect();
-    let mut batch = Batch { rays: Vec::new(), world: Vec::new(), groups: Vec::new(), pixels: 0, events: 0 };
+    let blur = method.blur.as_ref().filter(|_| cfg.blur.as_ref().is_some_and(|b| step >= b.start));
+    let blur_on = blur.is_some();
+    let n_views = data.views.len();
     let n_pix = cfg.batch_rays;
     let n_ev = if cfg.events.is_some() { cfg.events.as_ref().map_or(0, |e| e.batch) } else { 0 };
     let mut pick = Rng::new(cfg.seed, 1 << 40 | step);
@@ -363,80 +543,111 @@ pub fn step(
         let images = (n_pix * (t + 1) / threads - n_pix * t / threads).min(len);
         (0..len).map(move |i| i < images)
     });
+    // What each group is, in the workers' order; a pixel's slot is its index among its view's.
+    let mut picks = Vec::with_capacity(total);
+    let mut slots = vec![0u32; n_views];
     for is_image in kinds {
-        let first = batch.rays.len();
         if is_image {
             let v = sd.train_views[pick.below(sd.train_views.len() as u64) as usize];
             let (i, j) = (pick.below(w as u64) as u32, pick.below(h as u64) as u32);
-            let view = &data.views[v];
-            let img = match cfg.images {
-                ImageSource::Blurry => &view.image,
-                ImageSource::Sharp => view.sharp.as_ref().expect("checked in Trainer::new"),
-            };
-            let edi = sd.edi.get(v).and_then(|e| e.as_ref()).map_or([f32::NAN; 3], |e| e.pixel(i, j));
-            let ray = data.intrinsics.ray(&view.pose, i, j);
-            if blur_on {
-                let kernel = method.kernel.as_ref().expect("blur_on");
-                let vk = kernels[v].get_or_insert_with(|| {
-                    let out = kernel.forward(params, v);
-                    let twists: Vec<[f64; 6]> = out.twists.iter().map(|t| t.map(|x| x as f64)).collect();
-                    let motions = twists.iter().map(|&t| se3::exp(t)).collect();
-                    ViewKernel { out, twists, motions }
-                });
-                for m in &vk.motions {
-                    let o = m.point(ray.origin.to_array());
-                    let d = m.vector(ray.direction.to_array());
-                    let warped = Ray { origin: to_dvec(o), direction: to_dvec(d) };
-                    batch.rays.push(prepare(data, &warped));
-                    batch.world.push(warped);
-                }
-            }
-            batch.rays.push(prepare(data, &ray));
-            batch.world.push(ray);
-            batch.pixels += 1;
-            let kind = Kind::Image { view: v as u32, target: img.pixel(i, j), edi };
-            batch.groups.push(Group { first, n: batch.rays.len() - first, kind });
+            picks.push(Pick::Pixel { v, i, j, slot: slots[v] });
+            slots[v] += 1;
         } else {
             let j = sd.candidates[pick_ev.below(sd.candidates.len() as u64) as usize] as usize;
-            let k = ev.successor(j).expect("candidates have successors");
-            let (x, y) = (ev.x[j] as f64, ev.y[j] as f64);
-            let rays = [ev.t_us[j], ev.t_us[k]]
-                .map(|t| data.trajectory.pose_at(t).map(|pose| data.intrinsics.ray_through(&pose, x + 0.5, y + 0.5)));
-            let [Some(a), Some(b)] = rays else { continue };
-            for r in [a, b] {
-                batch.rays.push(prepare(data, &r));
-                batch.world.push(r);
+            picks.push(Pick::Event { j, k: ev.successor(j).expect("candidates have successors") });
+        }
+    }
+    // The blur model of every view with pixels in the batch.
+    let mut kernels: Vec<Option<ViewKernel>> = (0..n_views).map(|_| None).collect();
+    if let Some(blur) = blur {
+        let mut noise = Rng::new(cfg.seed, 3 << 40 | step);
+        for v in (0..n_views).filter(|&v| slots[v] > 0) {
+            let pixels: Vec<[f32; 2]> = picks
+                .iter()
+                .filter_map(|p| match *p {
+                    Pick::Pixel { v: pv, i, j, .. } if pv == v => Some([i as f32 + 0.5, j as f32 + 0.5]),
+                    _ => None,
+                })
+                .collect();
+            kernels[v] = Some(ViewKernel::new(blur, params, data, v, &pixels, &mut noise));
+        }
+    }
+    // The origin ray closes every blurred pixel's group when something reads it: the rigid
+    // kernel's weight, the AWP, the EDI prior.
+    let with_origin = matches!(blur, Some(Blur::Rigid(_))) || cfg.edi.is_some();
+    let mut batch =
+        Batch { rays: Vec::new(), world: Vec::new(), weights: Vec::new(), groups: Vec::new(), pixels: 0, events: 0 };
+    for p in picks {
+        let first = batch.rays.len();
+        match p {
+            Pick::Pixel { v, i, j, slot } => {
+                let view = &data.views[v];
+                let img = match (&sd.targets[v], &cfg.images) {
+                    (Some(t), _) => t,
+                    (None, ImageSource::Sharp) => view.sharp.as_ref().expect("checked in Trainer::new"),
+                    (None, _) => &view.image,
+                };
+                let edi = sd.edi.get(v).and_then(|e| e.as_ref()).map_or([f32::NAN; 3], |e| e.pixel(i, j));
+                let ray = data.intrinsics.ray(&view.pose, i, j);
+                match &kernels[v] {
+                    Some(vk) => {
+                        let origin_weight = vk.rays(data, view, &ray, i, j, slot as usize, &mut batch);
+                        if with_origin {
+                            batch.push(data, ray, origin_weight);
+                        }
+                    }
+                    None => batch.push(data, ray, 1.0),
+                }
+                batch.pixels += 1;
+                let kind = Kind::Image { view: v as u32, i, j, slot, target: img.pixel(i, j), edi };
+                batch.groups.push(Group { first, n: batch.rays.len() - first, kind });
             }
-            batch.events += 1;
-            let channel = if evc.is_some_and(|e| e.colour) { bayer(x, y) } else { 3 };
-            batch.groups.push(Group { first, n: 2, kind: Kind::Event { polarity: ev.polarity[k], channel } });
+            Pick::Event { j, k } => {
+                let (x, y) = (ev.x[j] as f64, ev.y[j] as f64);
+                let rays = [ev.t_us[j], ev.t_us[k]].map(|t| {
+                    data.trajectory.pose_at(t).map(|pose| data.intrinsics.ray_through(&pose, x + 0.5, y + 0.5))
+                });
+                let [Some(a), Some(b)] = rays else { continue };
+                batch.push(data, a, 0.0);
+                batch.push(data, b, 0.0);
+                batch.events += 1;
+                let channel = if evc.is_some_and(|e| e.colour) { bayer(x, y) } else { 3 };
+                batch.groups.push(Group { first, n: 2, kind: Kind::Event { polarity: ev.polarity[k], channel } });
+            }
         }
     }
     let inv_gamma = (1.0 / cfg.response_gamma) as f32;
     let img_scale = 1.0 / (3.0 * batch.pixels.max(1) as f32);
     let ev_scale = evc.map_or(0.0, |e| e.weight as f32) / batch.events.max(1) as f32;
     let edi_scale = edi_w as f32 * img_scale;
-    let k_rays = method.kernel.as_ref().map_or(0, |k| k.config.k);
+    let k_rays = blur.map_or(0, |b| b.rays());
+    // Blur models whose rays move with their parameters take the rays' gradients.
+    let learns_rays = match blur {
+        Some(Blur::Trajectory(t)) => t.config.learned,
+        Some(_) => true,
+        None => false,
+    };
+    let is_dsk = matches!(blur, Some(Blur::Dsk(_)));
     let awp = method.awp.as_ref().filter(|_| blur_on);
     let mix = awp.map_or(0.0, |a| a.config.mix_at(step)) as f32;
     // The image loss mixes the kernel's colours and the AWP's: (1 - l) [coarse + fine] + l awp.
     let blur_scale = img_scale * (1.0 - mix);
     let emb_dim = awp.map_or(0, |a| a.embedding);
     let kstride = 12 * k_rays + k_rays + 1 + emb_dim;
-    let n_views = data.views.len();
     let luma = evc.and_then(|e| e.luma).unwrap_or(BT601).map(|x| x as f32);
     let log_eps = evc.and_then(|e| e.log_eps).unwrap_or(1e-5) as f32;
     let step_seed = cfg.seed ^ step.wrapping_mul(0x9e37_79b9_7f4a_7c15);
     let chunk_rays = cfg.chunk_rays.max(1);
     let p: &[f32] = params;
     let ecrf = method.ecrf.as_ref();
-    let kernels_ref = &kernels;
     let batch_ref = &batch;
     let n_groups = batch.groups.len();
     let sums = bufs.grads.run(model.layout.len(), n_groups, &mut bufs.workers, |range, g, wk| {
         let mut sums = Sums::default();
         wk.kgrad.clear();
         wk.kgrad.resize(if blur_on { n_views * kstride } else { 0 }, 0.0);
+        wk.pgrad.clear();
+        wk.pgrad_groups.clear();
         let groups = &batch_ref.groups;
         let mut g0 = range.start;
         while g0 < range.end {
@@ -460,18 +671,26 @@ pub fn step(
             wk.df.resize(n, [0.0; 3]);
             let mut any_kernel = false;
             let mut any_awp = false;
-            for gr in &groups[g0..g1] {
-                let Kind::Image { view, target, edi } = gr.kind else { continue };
+            let mut chunk_pg = vec![usize::MAX; g1 - g0];
+            for (gi, gr) in groups[g0..g1].iter().enumerate() {
+                let Kind::Image { view, target, edi, .. } = gr.kind else { continue };
                 let (a, m) = (gr.first - r0, gr.n);
                 let origin = a + m - 1;
-                let kernel = (m > 1).then(|| kernels_ref[view as usize].as_ref().expect("kernel of a warped pixel"));
-                any_kernel |= kernel.is_some();
+                let blurred = m > 1;
+                any_kernel |= blurred;
+                // A DSK pixel's gradients: K x (offset 2, origin 3, weight 1).
+                let pg = (blurred && is_dsk).then(|| {
+                    wk.pgrad_groups.push((g0 + gi) as u32);
+                    wk.pgrad.resize(wk.pgrad.len() + 6 * k_rays, 0.0);
+                    wk.pgrad.len() - 6 * k_rays
+                });
+                chunk_pg[gi] = pg.unwrap_or(usize::MAX);
                 for pass in 0..2 {
                     let (cols, dcol) =
                         if pass == 0 { (wk.renderer.coarse(), &mut wk.dc) } else { (wk.renderer.fine(), &mut wk.df) };
-                    let weights = kernel.map(|vk| &vk.out.weights[..]);
+                    let weights = blurred.then(|| &batch_ref.weights[gr.first..gr.first + m]);
                     let mut dw = [0.0f32; MAX_RAYS];
-                    let scale = if kernel.is_some() { blur_scale } else { img_scale };
+                    let scale = if blurred { blur_scale } else { img_scale };
                     sums.image[pass] += blur_loss(
                         &cols[a..a + m],
                         weights,
@@ -481,10 +700,15 @@ pub fn step(
                         &mut dcol[a..a + m],
                         &mut dw[..m],
                     ) as f64;
-                    if kernel.is_some() {
+                    if blurred && matches!(blur, Some(Blur::Rigid(_))) {
                         let base = view as usize * kstride + 12 * k_rays;
                         for (q, d) in dw[..m].iter().enumerate() {
                             wk.kgrad[base + q] += *d as f64;
+                        }
+                    }
+                    if let Some(pg) = pg {
+                        for (q, d) in dw[..k_rays].iter().enumerate() {
+                            wk.pgrad[pg + 6 * q + 5] += *d as f64;
                         }
                     }
                     if edi_scale > 0.0 && !edi[0].is_nan() {
@@ -497,7 +721,7 @@ pub fn step(
                     }
                 }
                 // The AWP's colour: its weights over the fine colours of the same rays.
-                if let (Some(awp), true) = (awp, kernel.is_some() && mix > 0.0) {
+                if let (Some(awp), true) = (awp, blurred && mix > 0.0) {
                     let ps = wk.renderer.last_pass(model);
                     let (s, nf) = (ps.per_ray, ps.width);
                     if !any_awp {
@@ -507,7 +731,8 @@ pub fn step(
                     }
                     let feats = &ps.features[a * s * ps.stride..];
                     let om = &ps.weights[a * s..(a + m) * s];
-                    let e0 = method.kernel.as_ref().expect("kernel").embeddings + view as usize * emb_dim;
+                    let e0 = blur.and_then(Blur::rigid).expect("the AWP needs the rigid kernel").embeddings
+                        + view as usize * emb_dim;
                     let dir = batch_ref.rays[gr.first + m - 1].viewdir;
                     awp.forward(p, &mut wk.awp_ws, feats, ps.stride, s, om, &p[e0..e0 + emb_dim], dir);
                     let (mut d_cols, mut dw) = ([[0.0f32; 3]; MAX_RAYS], [0.0f32; MAX_RAYS]);
@@ -545,7 +770,7 @@ pub fn step(
                 log_eps,
                 ev_scale,
             );
-            let with_rays = blur_on && any_kernel;
+            let with_rays = learns_rays && any_kernel;
             if with_rays {
                 wk.d_rays.resize(n, RayGrad::zero());
             }
@@ -553,14 +778,30 @@ pub fn step(
             let d_feat = if any_awp { Some(&wk.dfeat[..]) } else { None };
             wk.renderer.backward(model, p, g, &chunk, &wk.dc, &wk.df, d_rays, d_feat);
             if with_rays {
-                for gr in &groups[g0..g1] {
-                    let Kind::Image { view, .. } = gr.kind else { continue };
+                for (gi, gr) in groups[g0..g1].iter().enumerate() {
+                    let Kind::Image { view, i, j, .. } = gr.kind else { continue };
                     if gr.n == 1 {
                         continue;
                     }
-                    let orig = batch_ref.world[gr.first + gr.n - 1];
+                    let pose = &data.views[view as usize].pose;
+                    if is_dsk {
+                        // World ray o = c + R t, d = R (d_cam(x + o) - t): back to the pixel
+                        // offset and the camera-frame origin shift.
+                        let pg = chunk_pg[gi];
+                        for q in 0..k_rays {
+                            let r = gr.first + q;
+                            let (d_off, d_t) =
+                                dsk_ray_backward(&data.intrinsics, pose, &batch_ref.world[r], &wk.d_rays[r - r0]);
+                            let out = &mut wk.pgrad[pg + 6 * q..pg + 6 * q + 5];
+                            for (o, d) in out.iter_mut().zip(d_off.iter().chain(&d_t)) {
+                                *o += d;
+                            }
+                        }
+                        continue;
+                    }
+                    let orig = data.intrinsics.ray(pose, i, j);
                     let base = view as usize * kstride;
-                    for q in 0..gr.n - 1 {
+                    for q in 0..k_rays {
                         let r = gr.first + q;
                         let (d_r, d_t) =
                             kernel_ray_backward(&data.intrinsics, &orig, &batch_ref.world[r], &wk.d_rays[r - r0]);
@@ -585,27 +826,69 @@ pub fn step(
     grads.resize(model.layout.len(), 0.0);
     bufs.grads.sum_into(grads);
     // The kernel: twists and weights of every view of the batch, summed over workers in order.
-    if blur_on {
-        let kernel = method.kernel.as_ref().expect("blur_on");
-        for (v, vk) in kernels.iter().enumerate() {
-            let Some(vk) = vk else { continue };
-            let base = v * kstride;
-            let total = |i: usize| bufs.workers.iter().map(|wk| wk.kgrad[base + i]).sum::<f64>();
-            let d_twists: Vec<[f32; 6]> = (0..k_rays)
-                .map(|q| {
-                    let d_r: [[f64; 3]; 3] =
-                        std::array::from_fn(|i| std::array::from_fn(|j| total(12 * q + 3 * i + j)));
-                    let d_t: [f64; 3] = std::array::from_fn(|i| total(12 * q + 9 + i));
-                    se3::exp_backward(vk.twists[q], &d_r, &d_t).map(|x| x as f32)
-                })
-                .collect();
-            let d_weights: Vec<f32> = (0..=k_rays).map(|q| total(12 * k_rays + q) as f32).collect();
-            let e0 = kernel.embeddings + v * emb_dim;
-            for k in 0..emb_dim {
-                grads[e0 + k] += total(13 * k_rays + 1 + k) as f32;
+    match blur {
+        Some(Blur::Rigid(_)) | Some(Blur::Trajectory(_)) if learns_rays => {
+            for (v, vk) in kernels.iter().enumerate() {
+                let Some(vk) = vk else { continue };
+                let base = v * kstride;
+                let total = |i: usize| bufs.workers.iter().map(|wk| wk.kgrad[base + i]).sum::<f64>();
+                let d_twists: Vec<[f64; 6]> = (0..k_rays)
+                    .map(|q| {
+                        let d_r: [[f64; 3]; 3] =
+                            std::array::from_fn(|i| std::array::from_fn(|j| total(12 * q + 3 * i + j)));
+                        let d_t: [f64; 3] = std::array::from_fn(|i| total(12 * q + 9 + i));
+                        se3::exp_backward(vk.twists[q], &d_r, &d_t)
+                    })
+                    .collect();
+                match blur {
+                    Some(Blur::Rigid(kernel)) => {
+                        let d_weights: Vec<f32> = (0..=k_rays).map(|q| total(12 * k_rays + q) as f32).collect();
+                        let e0 = kernel.embeddings + v * emb_dim;
+                        for k in 0..emb_dim {
+                            grads[e0 + k] += total(13 * k_rays + 1 + k) as f32;
+                        }
+                        let d_twists: Vec<[f32; 6]> = d_twists.iter().map(|t| t.map(|x| x as f32)).collect();
+                        let out = vk.rigid.as_ref().expect("rigid kernel output");
+                        kernel.backward(params, grads, v, out, &d_twists, &d_weights);
+                    }
+                    Some(Blur::Trajectory(t)) => t.backward(grads, v, &d_twists),
+                    _ => unreachable!("matched above"),
+                }
             }
-            kernel.backward(params, grads, v, &vk.out, &d_twists, &d_weights);
         }
+        Some(Blur::Dsk(dsk)) => {
+            // Each pixel's gradients from the worker that rendered it, in slot order per view.
+            let mut per_group: Vec<Option<&[f64]>> = vec![None; batch.groups.len()];
+            for wk in &bufs.workers {
+                for (n, &gi) in wk.pgrad_groups.iter().enumerate() {
+                    per_group[gi as usize] = Some(&wk.pgrad[6 * k_rays * n..6 * k_rays * (n + 1)]);
+                }
+            }
+            let mut by_view: Vec<Vec<&[f64]>> = vec![Vec::new(); n_views];
+            for (gr, pg) in batch.groups.iter().zip(&per_group) {
+                if let (Kind::Image { view, slot, .. }, Some(pg)) = (gr.kind, pg) {
+                    debug_assert_eq!(by_view[view as usize].len(), slot as usize);
+                    by_view[view as usize].push(pg);
+                }
+            }
+            let dc = cfg.blur.as_ref().and_then(|b| b.dsk.as_ref()).expect("DSK config");
+            let align_scale =
+                if step < dc.align_until { (dc.align_weight / batch.pixels.max(1) as f64) as f32 } else { 0.0 };
+            for (v, vk) in kernels.iter_mut().enumerate() {
+                let Some(ws) = vk.as_mut().and_then(|vk| vk.dsk.as_mut()) else { continue };
+                let pix = &by_view[v];
+                let entries = pix.iter().flat_map(|pg| pg.chunks_exact(6));
+                let mut d_off: Vec<[f32; 2]> = entries.clone().map(|e| [e[0] as f32, e[1] as f32]).collect();
+                let mut d_org: Vec<[f32; 3]> =
+                    entries.clone().map(|e| [e[2] as f32, e[3] as f32, e[4] as f32]).collect();
+                let d_w: Vec<f32> = entries.map(|e| e[5] as f32).collect();
+                if align_scale > 0.0 {
+                    dsk.align_backward(ws, align_scale, &mut d_off, &mut d_org);
+                }
+                dsk.backward(params, grads, ws, &d_off, &d_org, &d_w);
+            }
+        }
+        _ => {}
     }
     // The eCRF learns from its start iteration on (before: held at the identity).
     if let (Some(e), Some(c)) = (ecrf, cfg.ecrf.as_ref()) {
@@ -631,6 +914,25 @@ pub fn step(
         edi: s.edi,
         awp: s.awp / np,
     }
+}
+
+/// The world ray of a DSK kernel point of pixel (`i`, `j`) for a camera at `pose`: through
+/// the image point (i + 0.5, j + 0.5) + `offset` (pixels), from the camera-frame origin shift
+/// `origin`, pivoting about the shifted image point at camera depth 1 (Deblur-NeRF's rays):
+/// o = c + R t, d = R (d_cam(x + o) - t).
+pub fn dsk_ray(k: &Intrinsics, pose: &Pose, i: u32, j: u32, offset: [f64; 2], origin: [f64; 3]) -> Ray {
+    let t = DVec3::from_array(origin);
+    let d = k.camera_direction_at(i as f64 + 0.5 + offset[0], j as f64 + 0.5 + offset[1]);
+    Ray { origin: pose.position + pose.rotation * t, direction: pose.rotation * (d - t) }
+}
+
+/// Backward of [`dsk_ray`] from the ray's renderer gradients: (dL/d offset, dL/d origin shift).
+pub fn dsk_ray_backward<R: Real>(k: &Intrinsics, pose: &Pose, world: &Ray, g: &RayGrad<R>) -> ([f64; 2], [f64; 3]) {
+    let (d_o, d_d) = warped_ray_backward(k, world, g);
+    let inv = pose.rotation.inverse();
+    let (d_oc, d_dc) = (inv * d_o, inv * d_d);
+    // d_cam(u, v) = ((u - W/2) / f, -(v - H/2) / f, -1).
+    ([d_dc.x / k.focal, -d_dc.y / k.focal], (d_oc - d_dc).to_array())
 }
 
 /// Most rays a pixel group can have (the origin ray and up to 31 warped rays).

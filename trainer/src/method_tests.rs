@@ -165,6 +165,76 @@ fn blur_kernel_chain_matches_finite_differences() {
 }
 
 #[test]
+fn dsk_ray_chain_matches_finite_differences() {
+    // Pixel offsets and camera-frame origin shifts of K = 3 kernel points -> world rays -> NDC
+    // -> renderer -> blurry colour -> loss, against dsk_ray_backward after the renderer.
+    let model = Model::new(&tiny_model());
+    let mut params: Vec<f64> = model.init(4).iter().map(|&p| p as f64).collect();
+    for p in &mut params[model.volumes[0].planes[0]..model.volumes[0].basis.w] {
+        *p *= 30.0;
+    }
+    let pose = Pose {
+        rotation: DQuat::from_rotation_y(0.1) * DQuat::from_rotation_x(-0.05),
+        position: DVec3::new(0.05, -0.1, 0.2),
+    };
+    let (i, j) = (14, 11);
+    let offsets = [[0.7, -1.2], [-0.4, 0.3], [1.5, 0.9]];
+    let origins = [[0.01, -0.02, 0.0], [-0.015, 0.005, 0.0], [0.0, 0.02, 0.0]];
+    let weights = [0.5, 0.2, 0.3];
+    let target = [0.4, 0.55, 0.3];
+    let rays = |off: &[[f64; 2]; 3], org: &[[f64; 3]; 3]| -> Vec<Ray> {
+        (0..3).map(|q| dsk_ray(&K, &pose, i, j, off[q], org[q])).collect()
+    };
+    let loss_of = |r: &Renderer<f64>, dc: &mut [[f64; 3]], df: &mut [[f64; 3]]| {
+        let mut dw = [0.0; 3];
+        blur_loss(r.coarse(), Some(&weights), target, 1.0 / 2.2, 1.0, dc, &mut dw)
+            + blur_loss(r.fine(), Some(&weights), target, 1.0 / 2.2, 1.0, df, &mut dw)
+    };
+    let world = rays(&offsets, &origins);
+    let (o, d, v) = chunk_of(&world);
+    let mut renderer = Renderer::<f64>::default();
+    let mut rngs: Vec<Rng> = (0..3).map(|r| Rng::new(9, r as u64)).collect();
+    renderer.forward(&model, &params, &RayChunk { origins: &o, dirs: &d, viewdirs: &v }, Some(&mut rngs));
+    let (mut dc, mut df) = (vec![[0.0; 3]; 3], vec![[0.0; 3]; 3]);
+    loss_of(&renderer, &mut dc, &mut df);
+    let mut grads = model.layout.zeros::<f64>();
+    let mut d_rays = vec![RayGrad::zero(); 3];
+    let chunk = RayChunk { origins: &o, dirs: &d, viewdirs: &v };
+    renderer.backward(&model, &params, &mut grads, &chunk, &dc, &df, Some(&mut d_rays), None);
+    let mut replay = renderer.clone();
+    let mut loss_at = |off: &[[f64; 2]; 3], org: &[[f64; 3]; 3]| {
+        let (o, d, v) = chunk_of(&rays(off, org));
+        replay.replay(&model, &params, &RayChunk { origins: &o, dirs: &d, viewdirs: &v });
+        let (mut a, mut b) = (vec![[0.0; 3]; 3], vec![[0.0; 3]; 3]);
+        loss_of(&replay, &mut a, &mut b)
+    };
+    let h = 1e-6;
+    for q in 0..3 {
+        let (d_off, d_org) = dsk_ray_backward(&K, &pose, &world[q], &d_rays[q]);
+        for c in 0..5 {
+            let mut eval = |delta: f64| {
+                let (mut off, mut org) = (offsets, origins);
+                if c < 2 {
+                    off[q][c] += delta;
+                } else {
+                    org[q][c - 2] += delta;
+                }
+                loss_at(&off, &org)
+            };
+            let fd = (eval(h) - eval(-h)) / (2.0 * h);
+            let an = if c < 2 { d_off[c] } else { d_org[c - 2] };
+            assert!(
+                (fd - an).abs() <= 2e-6 * (1.0 + fd.abs().max(an.abs())),
+                "point {q} input {c}: finite difference {fd}, analytic {an}"
+            );
+            if c < 2 {
+                assert!(an.abs() > 1e-7, "point {q} offset {c} has no gradient");
+            }
+        }
+    }
+}
+
+#[test]
 fn event_term_through_the_ecrf_matches_finite_differences() {
     let mut layout = Layout::default();
     for polarity_input in [true, false] {

@@ -9,7 +9,9 @@
 //! - `cpu`: sized for 2 cores and about 20 minutes (see [`cpu_model`] for the choices and why).
 
 use crate::blur::awp::AwpConfig;
+use crate::blur::dsk::DskConfig;
 use crate::blur::rigid::RigidConfig;
+use crate::blur::trajectory::TrajectoryConfig;
 use crate::config::{BlurConfig, EventLossConfig, ImageSource, TrainConfig};
 use crate::engine::adam::AdamConfig;
 use crate::engine::field::FieldShape;
@@ -70,6 +72,29 @@ pub const PRESETS: &[Preset] = &[
         name: "ev-deblurnerf--",
         description: "Ev-DeblurNeRF without eCRF and EDI: rigid blur kernel and event loss",
         build: ev_deblurnerf_minus,
+    },
+    Preset {
+        name: "e2nerf",
+        description:
+            "E2NeRF-style: fixed virtual cameras from the trajectory inside the exposure, events inside exposures",
+        build: e2nerf,
+    },
+    Preset { name: "e-nerf", description: "E-NeRF: event loss and the blurry images, no blur model", build: e_nerf },
+    Preset {
+        name: "edi-nerf",
+        description: "EDI + NeRF: images deblurred by the event double integral, then a plain radiance field",
+        build: edi_nerf,
+    },
+    Preset { name: "dp-nerf", description: "DP-NeRF: rigid blur kernel + AWP, images only", build: dp_nerf },
+    Preset {
+        name: "deblur-nerf",
+        description: "Deblur-NeRF: per-pixel deformable sparse kernel, images only",
+        build: deblur_nerf,
+    },
+    Preset {
+        name: "bad-nerf",
+        description: "BAD-NeRF: learned camera trajectory (start and end poses) inside each exposure, images only",
+        build: bad_nerf,
     },
 ];
 
@@ -211,7 +236,13 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
     let edi = EdiConfig::reference_synthetic();
     match scale {
         Scale::Paper => TrainConfig {
-            blur: Some(BlurConfig { kernel: rigid_reference(), start: 1200, awp: Some(AwpConfig::reference()) }),
+            blur: Some(BlurConfig {
+                kernel: Some(rigid_reference()),
+                start: 1200,
+                awp: Some(AwpConfig::reference()),
+                dsk: None,
+                trajectory: None,
+            }),
             events: Some(EventLossConfig::reference()),
             ecrf: Some(EcrfConfig::reference()),
             edi: Some(edi),
@@ -221,9 +252,11 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
             batch_rays: 256,
             chunk_rays: 12,
             blur: Some(BlurConfig {
-                kernel: RigidConfig { k: 5, ..rigid_reference() },
+                kernel: Some(RigidConfig { k: 5, ..rigid_reference() }),
                 start: 320,
                 awp: Some(cpu_awp()),
+                dsk: None,
+                trajectory: None,
             }),
             events: Some(EventLossConfig { batch: 512, ..EventLossConfig::reference() }),
             ecrf: Some(EcrfConfig { start: 320, ..EcrfConfig::reference() }),
@@ -236,6 +269,83 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
 /// Ev-DeblurNeRF-- : [`ev_deblurnerf`] without the eCRF and the EDI prior.
 pub fn ev_deblurnerf_minus(scale: Scale) -> TrainConfig {
     TrainConfig { ecrf: None, edi: None, ..ev_deblurnerf(scale) }
+}
+
+/// A blur model on its own, starting at `start` (the rigid kernel's slots empty).
+fn blur_only(start: u64) -> BlurConfig {
+    BlurConfig { kernel: None, start, awp: None, dsk: None, trajectory: None }
+}
+
+/// The iteration at `paper` scale's `at` (of 30 000) scaled to the `cpu` budget (8000).
+fn cpu_iteration(at: u64) -> u64 {
+    at * 8000 / 30_000
+}
+
+/// DP-NeRF: [`ev_deblurnerf`]'s rigid kernel and AWP with the images only (no events, eCRF or
+/// EDI), at the same pixels per step.
+pub fn dp_nerf(scale: Scale) -> TrainConfig {
+    TrainConfig { events: None, ecrf: None, edi: None, ..ev_deblurnerf(scale) }
+}
+
+/// Deblur-NeRF: the deformable sparse kernel (reference settings: K = 5, from iteration 1200,
+/// alignment loss until 90% of the run). Cpu scale: 256 pixels x 5 rays per step, start and
+/// alignment end scaled to the 8000-iteration budget.
+pub fn deblur_nerf(scale: Scale) -> TrainConfig {
+    let base = nerf(scale);
+    let dsk = DskConfig { align_until: base.iterations * 9 / 10, ..DskConfig::reference() };
+    match scale {
+        Scale::Paper => TrainConfig { blur: Some(BlurConfig { dsk: Some(dsk), ..blur_only(1200) }), ..base },
+        Scale::Cpu => TrainConfig {
+            batch_rays: 256,
+            chunk_rays: 12,
+            blur: Some(BlurConfig { dsk: Some(dsk), ..blur_only(cpu_iteration(1200)) }),
+            ..base
+        },
+    }
+}
+
+/// BAD-NeRF: per image a start and an end pose inside the exposure, learned from the first
+/// iteration (both start at the dataset's pose), 7 virtual cameras (BAD-NeRF's synthetic
+/// setting; cpu: 5, 256 pixels per step).
+pub fn bad_nerf(scale: Scale) -> TrainConfig {
+    let base = nerf(scale);
+    let trajectory = |k| Some(TrajectoryConfig { k, learned: true });
+    match scale {
+        Scale::Paper => TrainConfig { blur: Some(BlurConfig { trajectory: trajectory(7), ..blur_only(0) }), ..base },
+        Scale::Cpu => TrainConfig {
+            batch_rays: 256,
+            chunk_rays: 12,
+            blur: Some(BlurConfig { trajectory: trajectory(5), ..blur_only(0) }),
+            ..base
+        },
+    }
+}
+
+/// E2NeRF-style: the blurry colour is the mean of K virtual cameras at the dataset
+/// trajectory's poses inside the exposure (fixed, nothing learned; paper K = 9, cpu 5), and
+/// the event loss sees only pairs of events inside a training view's exposure.
+pub fn e2nerf(scale: Scale) -> TrainConfig {
+    let base = ev_deblurnerf(scale);
+    let k = if scale == Scale::Paper { 9 } else { 5 };
+    TrainConfig {
+        blur: Some(BlurConfig { trajectory: Some(TrajectoryConfig { k, learned: false }), ..blur_only(0) }),
+        events: base.events.clone().map(|e| EventLossConfig { inside_exposures: true, ..e }),
+        ecrf: None,
+        edi: None,
+        ..base
+    }
+}
+
+/// E-NeRF: the event loss (all pairs, as [`ev_deblurnerf`]'s) plus the image loss on the
+/// blurry images, no blur model, no eCRF or EDI; the `nerf` field and pixels per step.
+pub fn e_nerf(scale: Scale) -> TrainConfig {
+    TrainConfig { events: ev_deblurnerf(scale).events, ..nerf(scale) }
+}
+
+/// EDI + NeRF: the `nerf` preset on the training views deblurred by the event double integral
+/// (8 bins; model-based, no learning).
+pub fn edi_nerf(scale: Scale) -> TrainConfig {
+    TrainConfig { images: ImageSource::Edi, ..nerf(scale) }
 }
 
 /// Plain radiance field on the sharp renders of the training views.

@@ -192,13 +192,15 @@ pub struct Trainer<'a> {
     /// Training time so far (s).
     pub seconds: f64,
     engine: method::StepBuffers,
-    step_data: StepData,
+    /// What every step reads besides the parameters (event candidates, EDI and replacement
+    /// training images).
+    pub step_data: StepData,
     threads: usize,
     pool: rayon::ThreadPool,
 }
 
 /// The training images of `data` for `source`, or an error naming what is missing.
-fn check_images(data: &Dataset, source: ImageSource) -> Result<Vec<usize>, TrainError> {
+fn check_images(data: &Dataset, source: &ImageSource) -> Result<Vec<usize>, TrainError> {
     let train = data.split.train.clone();
     if train.is_empty() {
         return Err(TrainError::Missing {
@@ -207,7 +209,7 @@ fn check_images(data: &Dataset, source: ImageSource) -> Result<Vec<usize>, Train
             fix: "write a dataset with more views (evsim dataset --views)".into(),
         });
     }
-    if source == ImageSource::Sharp && train.iter().any(|&v| data.views[v].sharp.is_none()) {
+    if *source == ImageSource::Sharp && train.iter().any(|&v| data.views[v].sharp.is_none()) {
         return Err(TrainError::Missing {
             path: data.dir.join("images_sharp_1"),
             what: "the sharp training views are missing (the preset trains on them)".into(),
@@ -224,7 +226,8 @@ impl<'a> Trainer<'a> {
         Trainer::new_in(data, cfg, checkpoint, None)
     }
 
-    /// As [`Trainer::new`], caching the EDI targets in `cache` (e.g. the run folder's `edi/`).
+    /// As [`Trainer::new`], caching the EDI targets and deblurred images under `cache` (the run
+    /// folder: `edi/`, `deblurred/`).
     pub fn new_in(
         data: &'a Dataset,
         cfg: TrainConfig,
@@ -234,8 +237,8 @@ impl<'a> Trainer<'a> {
         let mut cfg = cfg;
         cfg.validate().map_err(TrainError::Config)?;
         method::resolve(&mut cfg, data);
-        let train_views = check_images(data, cfg.images)?;
-        if (cfg.events.is_some() || cfg.edi.is_some()) && data.events.is_empty() {
+        let train_views = check_images(data, &cfg.images)?;
+        if cfg.needs_events() && data.events.is_empty() {
             return Err(TrainError::Missing {
                 path: data.dir.join("events.h5"),
                 what: "the method needs events but none were loaded".into(),

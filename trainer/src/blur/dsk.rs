@@ -89,10 +89,8 @@ pub struct DskConfig {
     /// Weight of the alignment loss (reference `kernel_align_weight`: 0.1).
     pub align_weight: f64,
     /// Iteration after which the alignment loss is dropped (reference: 180 000 of 200 000).
+    /// The kernel itself starts at `blur.start` (reference `kernel_start_iter`: 1200).
     pub align_until: u64,
-    /// Iteration from which the kernel is used; before it pixels render their single sharp ray
-    /// (reference `kernel_start_iter`: 1200).
-    pub start: u64,
 }
 
 impl DskConfig {
@@ -114,7 +112,6 @@ impl DskConfig {
             init_scale: 1.0,
             align_weight: 0.1,
             align_until: 180_000,
-            start: 1200,
         }
     }
 

@@ -133,7 +133,7 @@ fn main() -> Result<()> {
 
 /// Loads the dataset, with its events only when the method uses them (evaluation never does).
 fn load(data: &Path, cfg: &TrainConfig, events: bool) -> Result<Dataset> {
-    let read_events = events && (cfg.events.is_some() || cfg.edi.is_some());
+    let read_events = events && cfg.needs_events();
     let opts = LoadOptions { read_events, read_sharp: true, ..LoadOptions::default() };
     Ok(Dataset::load(data, &opts)?)
 }
@@ -242,7 +242,7 @@ fn train(
         Some(d) => d,
         None => load(&record.data, &record.config, true)?,
     };
-    let mut trainer = Trainer::new_in(&dataset, record.config.clone(), checkpoint, Some(&run.dir.join("edi")))?;
+    let mut trainer = Trainer::new_in(&dataset, record.config.clone(), checkpoint, Some(&run.dir))?;
     let start = trainer.step;
     if start >= record.config.iterations {
         println!(

@@ -24,7 +24,7 @@
 //! dL/dw back to the parameters, the per-sample features and the image embedding.
 
 use crate::engine::encoding;
-use crate::engine::mlp::{backward_stack, forward_stack, Act, Dense};
+use crate::engine::mlp::{backward_stack, forward_stack, softmax, Act, Dense};
 use crate::engine::params::Layout;
 use crate::engine::real::Real;
 
@@ -435,19 +435,6 @@ impl Awp {
         );
         ws.g_b = g_b;
         ws.d_features = d_features;
-    }
-}
-
-/// In-place softmax of a row.
-fn softmax<R: Real>(row: &mut [R]) {
-    let max = row.iter().copied().fold(R::neg_infinity(), R::max);
-    let mut total = R::zero();
-    for x in row.iter_mut() {
-        *x = (*x - max).exp();
-        total += *x;
-    }
-    for x in row.iter_mut() {
-        *x = *x / total;
     }
 }
 

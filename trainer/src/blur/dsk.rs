@@ -42,7 +42,7 @@
 //! embedding and its canonical points.
 
 use crate::engine::encoding;
-use crate::engine::mlp::{backward_stack, forward_stack, Act, Dense};
+use crate::engine::mlp::{backward_stack, forward_stack, softmax, Act, Dense};
 use crate::engine::params::{Layout, LrClass};
 use crate::engine::real::Real;
 use std::f64::consts::PI;
@@ -521,19 +521,6 @@ impl Dsk {
                 }
             }
         }
-    }
-}
-
-/// In-place softmax of a row.
-fn softmax<R: Real>(row: &mut [R]) {
-    let max = row.iter().copied().fold(R::neg_infinity(), R::max);
-    let mut total = R::zero();
-    for x in row.iter_mut() {
-        *x = (*x - max).exp();
-        total += *x;
-    }
-    for x in row.iter_mut() {
-        *x = *x / total;
     }
 }
 

@@ -170,6 +170,19 @@ impl Dense {
     }
 }
 
+/// In-place softmax of a row.
+pub fn softmax<R: Real>(row: &mut [R]) {
+    let max = row.iter().copied().fold(R::neg_infinity(), R::max);
+    let mut total = R::zero();
+    for x in row.iter_mut() {
+        *x = (*x - max).exp();
+        total += *x;
+    }
+    for x in row.iter_mut() {
+        *x = *x / total;
+    }
+}
+
 /// Forward through a stack of layers: `h[0] = l0(x)` (x: p rows of stride `ldx`),
 /// `h[i] = li(h[i-1])`; each `h[i]` is p x n_out, contiguous.
 pub fn forward_stack<R: Real>(layers: &[Dense], params: &[R], p: usize, x: &[R], ldx: usize, h: &mut [Vec<R>]) {

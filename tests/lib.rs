@@ -5,10 +5,11 @@
 //! the reference loader's reading, against ours), `dataset_writer.rs` (`evsim dataset` end to
 //! end: layout, re-runs, resume, thread counts, the noise measurement), `scene_library.rs`
 //! (every dataset scene in `scenes/` makes a dataset that passes the check),
-//! `metrics_skimage.rs` (the trainer's PSNR / SSIM against scikit-image) and `trainer_runs.rs`
+//! `metrics_skimage.rs` (the trainer's PSNR / SSIM against scikit-image), `lpips_numpy.rs`
+//! (the benchmark's LPIPS against a numpy reference, on random weights) and `trainer_runs.rs`
 //! (every preset's smoke run, bit-exact resume, run errors and `evtrain` end to end).
 //!
-//! This library holds what those files share: fresh temp folders and the reference Python
+//! This library holds what those files share: fresh temp folders, `.npy` writing and the reference Python
 //! (the Mitsuba venv, which also has numpy, h5py and scikit-image), skipped or required by
 //! `EVBLUR_REQUIRE_MITSUBA=1` (set by `tests/run.sh`).
 
@@ -43,6 +44,22 @@ pub fn python_with(modules: &str, test: &str) -> Option<PathBuf> {
         println!("\n*** SKIPPED {test}: {msg} ***\n");
     }
     py
+}
+
+/// Write `data` as a `.npy` file (format 1.0, little-endian f32, C order) of the given shape.
+pub fn write_npy_f32(path: &Path, shape: &[usize], data: &[f32]) {
+    assert_eq!(shape.iter().product::<usize>(), data.len(), "write_npy_f32: shape {shape:?} vs {} values", data.len());
+    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    let shape = if dims.len() == 1 { format!("({},)", dims[0]) } else { format!("({})", dims.join(", ")) };
+    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
+    // Pad with spaces so that magic (6) + version (2) + length (2) + header + '\n' is a multiple of 64.
+    header.push_str(&" ".repeat(63 - (10 + header.len()) % 64));
+    header.push('\n');
+    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    bytes.extend(data.iter().flat_map(|v| v.to_le_bytes()));
+    std::fs::write(path, bytes).unwrap();
 }
 
 /// Run `python -c script args...` and fail the test with its output unless it succeeds.

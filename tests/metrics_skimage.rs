@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
-use evblur_tests::{python_with, temp_dir};
+use evblur_tests::{python_with, temp_dir, write_npy_f32};
 use simulator::render::sampling::Rng;
 use trainer::metrics::{psnr, ssim, ImageRef};
 
@@ -66,21 +66,6 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-/// The image as `.npy` (format 1.0, little-endian f32): shape (H, W) for one channel, else
-/// (H, W, C). Written here because `simulator::npy` holds 1-D and 2-D arrays only.
-fn write_image(path: &Path, c: &Case, data: &[f32]) {
-    let shape = if c.nc == 1 { format!("({}, {})", c.h, c.w) } else { format!("({}, {}, {})", c.h, c.w, c.nc) };
-    let mut header = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
-    // Pad with spaces so that magic (6) + version (2) + length (2) + header + '\n' is a multiple of 64.
-    header.push_str(&" ".repeat(63 - (10 + header.len()) % 64));
-    header.push('\n');
-    let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
-    bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
-    bytes.extend_from_slice(header.as_bytes());
-    bytes.extend(data.iter().flat_map(|v| v.to_le_bytes()));
-    std::fs::write(path, bytes).unwrap();
-}
-
 #[test]
 fn psnr_and_ssim_match_skimage() {
     let Some(py) = python_with("numpy, skimage.metrics", "psnr_and_ssim_match_skimage") else { return };
@@ -90,7 +75,8 @@ fn psnr_and_ssim_match_skimage() {
     for (k, c) in cases.iter().enumerate() {
         for (tag, data) in [("a", &c.a), ("b", &c.b)] {
             let path = dir.join(format!("{k}{tag}.npy"));
-            write_image(&path, c, data);
+            let shape = if c.nc == 1 { vec![c.h, c.w] } else { vec![c.h, c.w, c.nc] };
+            write_npy_f32(&path, &shape, data);
             args.push(path);
         }
     }

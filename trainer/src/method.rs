@@ -16,6 +16,7 @@
 //! gradient reaches the twists through the renderer's ray gradients, the NDC warp's backward,
 //! the view direction's normalisation and the rigid warp (all finite-difference checked).
 
+use std::ops::Range;
 use std::path::Path;
 
 use glam::DVec3;
@@ -34,7 +35,7 @@ use crate::engine::model::Model;
 use crate::engine::parallel::GradBuffers;
 use crate::engine::params::Layout;
 use crate::engine::real::Real;
-use crate::engine::renderer::{RayChunk, RayGrad, Renderer};
+use crate::engine::renderer::{PassSamples, RayChunk, RayGrad, Renderer};
 use crate::engine::rng::Rng;
 use crate::error::TrainError;
 use crate::events::ecrf::{Ecrf, EcrfWorkspace};
@@ -96,11 +97,12 @@ impl Method {
     /// The parameters of `cfg` for a dataset of `views` views.
     pub fn new(cfg: &TrainConfig, views: usize) -> Method {
         let mut model = Model::new(&cfg.model);
+        let coarse_features = model.coarse.shape.features;
         let blur = cfg.blur.as_ref().map(|b| {
             let l = &mut model.layout;
             match (&b.kernel, &b.dsk, &b.trajectory) {
                 (Some(k), _, _) => Blur::Rigid(RigidKernel::new(l, k, views)),
-                (None, Some(d), _) => Blur::Dsk(Dsk::new(l, d, views)),
+                (None, Some(d), _) => Blur::Dsk(Dsk::new(l, d, views, coarse_features)),
                 (None, None, Some(t)) => Blur::Trajectory(Trajectory::new(l, t, views)),
                 (None, None, None) => unreachable!("validated: one blur model"),
             }
@@ -422,8 +424,17 @@ struct ViewKernel {
 }
 
 impl ViewKernel {
-    /// The model of view `v` whose batch pixels (slot order, pixel centres) are `pixels`.
-    fn new(blur: &Blur, params: &[f32], data: &Dataset, v: usize, pixels: &[[f32; 2]], noise: &mut Rng) -> ViewKernel {
+    /// The model of view `v` whose batch pixels (slot order, pixel centres) are `pixels`
+    /// (`features`: a progressive DSK's feature input, from PDRF's first stage).
+    fn new(
+        blur: &Blur,
+        params: &[f32],
+        data: &Dataset,
+        v: usize,
+        pixels: &[[f32; 2]],
+        noise: &mut Rng,
+        features: Option<&[f32]>,
+    ) -> ViewKernel {
         let mut vk = ViewKernel {
             rigid: None,
             twists: Vec::new(),
@@ -454,7 +465,7 @@ impl ViewKernel {
                     (0..pixels.len() * k).map(|_| [noise.normal_f32(), noise.normal_f32()]).collect();
                 let size = [data.intrinsics.width as f32, data.intrinsics.height as f32];
                 let mut ws = DskWorkspace::default();
-                dsk.forward(params, &mut ws, v, pixels, size, Some(&jitter));
+                dsk.forward(params, &mut ws, v, pixels, size, Some(&jitter), features);
                 vk.dsk = Some(ws);
             }
         }
@@ -495,6 +506,141 @@ impl ViewKernel {
                 }
                 0.0
             }
+        }
+    }
+}
+
+/// PDRF's first stage for one view's batch pixels (slot order).
+#[derive(Debug, Default)]
+struct Probe {
+    /// The kernel without features.
+    ws: DskWorkspace<f32>,
+    /// Each point's coarse colour.
+    cols: Vec<[f32; 3]>,
+    /// Each point's coarse features integrated along its ray (K x features per pixel).
+    feats: Vec<f32>,
+    /// dL/d those features (from the second stage's kernel).
+    d_feats: Vec<f32>,
+    /// dL/d each pixel's first-stage blurry colour sum_k w'_k c'_k (from the coarse loss).
+    d_blur: Vec<[f32; 3]>,
+}
+
+/// The rendering of PDRF's first-stage rays, forward or backward.
+struct ProbePass<'a> {
+    model: &'a Model,
+    data: &'a Dataset,
+    probes: &'a [Option<Probe>],
+    /// (view, slot) of every probed pixel, in order.
+    pixels: &'a [(usize, usize)],
+    view_pixels: &'a [Vec<(u32, u32)>],
+    k: usize,
+    chunk_rays: usize,
+    seed: u64,
+}
+
+impl ProbePass<'_> {
+    /// Renders the K first-stage rays of the pixels `range` with the coarse pass only, in
+    /// chunks of at most `chunk_rays` rays (at least one pixel); ray r of the stage draws from
+    /// `Rng::new(seed, r)`, so the backward replays the forward's samples. Forward: returns per
+    /// pixel K colours then K x features integrated features. Backward (`back`): accumulates
+    /// the field's gradients into `g` from the probes' dL/d blurry colour and dL/d features
+    /// (render weights held fixed) and returns per point dL/d offset (2), origin shift (3).
+    fn run(&self, p: &[f32], range: Range<usize>, g: &mut [f32], wk: &mut Worker, back: bool) -> Vec<f32> {
+        let (k, data) = (self.k, self.data);
+        let per = (self.chunk_rays / k).max(1);
+        let mut out = Vec::new();
+        let mut p0 = range.start;
+        while p0 < range.end {
+            let p1 = (p0 + per).min(range.end);
+            let mut world = Vec::with_capacity((p1 - p0) * k);
+            for &(v, s) in &self.pixels[p0..p1] {
+                let pr = self.probes[v].as_ref().expect("probed view");
+                let (i, j) = self.view_pixels[v][s];
+                for q in s * k..(s + 1) * k {
+                    let (o, t) = (pr.ws.offsets[q].map(f64::from), pr.ws.origins[q].map(f64::from));
+                    world.push(dsk_ray(&data.intrinsics, &data.views[v].pose, i, j, o, t));
+                }
+            }
+            let prepared: Vec<PreparedRay> = world.iter().map(|r| prepare(data, r)).collect();
+            let (o, d, vd) = unzip(&prepared);
+            let chunk = RayChunk { origins: &o, dirs: &d, viewdirs: &vd };
+            let mut rngs: Vec<Rng> = (p0 * k..p1 * k).map(|r| Rng::new(self.seed, r as u64)).collect();
+            wk.renderer.forward_coarse(self.model, p, &chunk, Some(&mut rngs));
+            let n = world.len();
+            let ps = wk.renderer.last_pass(self.model);
+            let (spr, nf) = (ps.per_ray, ps.width);
+            if !back {
+                for (b, _) in self.pixels[p0..p1].iter().enumerate() {
+                    for r in b * k..(b + 1) * k {
+                        out.extend_from_slice(&wk.renderer.coarse()[r]);
+                    }
+                    for r in b * k..(b + 1) * k {
+                        let at = out.len();
+                        out.resize(at + nf, 0.0);
+                        ray_features(&ps, r, &mut out[at..]);
+                    }
+                }
+            } else {
+                wk.dc.clear();
+                wk.dc.resize(n, [0.0; 3]);
+                wk.df.clear();
+                wk.df.resize(n, [0.0; 3]);
+                wk.dfeat.clear();
+                wk.dfeat.resize(n * spr * nf, 0.0);
+                for (b, &(v, s)) in self.pixels[p0..p1].iter().enumerate() {
+                    let pr = self.probes[v].as_ref().expect("probed view");
+                    for q in 0..k {
+                        let (r, pq) = (b * k + q, s * k + q);
+                        wk.dc[r] = pr.d_blur[s].map(|x| x * pr.ws.weights[pq]);
+                        let df = &pr.d_feats[pq * nf..(pq + 1) * nf];
+                        ray_features_backward(&ps, r, df, &mut wk.dfeat[r * spr * nf..(r + 1) * spr * nf]);
+                    }
+                }
+                wk.d_rays.resize(n, RayGrad::zero());
+                wk.renderer.backward(
+                    self.model,
+                    p,
+                    g,
+                    &chunk,
+                    &wk.dc,
+                    &wk.df,
+                    Some(&mut wk.d_rays[..n]),
+                    Some(&wk.dfeat),
+                );
+                for (b, &(v, _)) in self.pixels[p0..p1].iter().enumerate() {
+                    let pose = &data.views[v].pose;
+                    for (ray, g) in world[b * k..(b + 1) * k].iter().zip(&wk.d_rays[b * k..(b + 1) * k]) {
+                        let (d_off, d_org) = dsk_ray_backward(&data.intrinsics, pose, ray, g);
+                        out.extend(d_off.iter().chain(&d_org).map(|&x| x as f32));
+                    }
+                }
+            }
+            p0 = p1;
+        }
+        out
+    }
+}
+
+/// A ray's features integrated with its render weights, `f = sum_s w_s feat_s`, for ray `r` of
+/// a pass (`out`: the pass's feature width).
+pub fn ray_features<R: Real>(ps: &PassSamples<R>, r: usize, out: &mut [R]) {
+    out.fill(R::zero());
+    for i in r * ps.per_ray..(r + 1) * ps.per_ray {
+        let row = &ps.features[i * ps.stride..i * ps.stride + ps.width];
+        for (x, &y) in out.iter_mut().zip(row) {
+            *x += ps.weights[i] * y;
+        }
+    }
+}
+
+/// Backward of [`ray_features`] with the render weights held fixed: dL/d feat_s = w_s dL/df
+/// for every sample of ray `r` (`out`: samples x width, what
+/// [`Renderer::backward`]'s `d_features` takes for that ray).
+pub fn ray_features_backward<R: Real>(ps: &PassSamples<R>, r: usize, d: &[R], out: &mut [R]) {
+    for (s, row) in out.chunks_exact_mut(ps.width).enumerate() {
+        let w = ps.weights[r * ps.per_ray + s];
+        for (x, &y) in row.iter_mut().zip(d) {
+            *x = w * y;
         }
     }
 }
@@ -557,19 +703,67 @@ pub fn step(
             picks.push(Pick::Event { j, k: ev.successor(j).expect("candidates have successors") });
         }
     }
+    // Each view's batch pixels in slot order.
+    let mut view_pixels: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n_views];
+    for p in &picks {
+        if let Pick::Pixel { v, i, j, .. } = *p {
+            view_pixels[v].push((i, j));
+        }
+    }
+    let centres =
+        |v: usize| -> Vec<[f32; 2]> { view_pixels[v].iter().map(|&(i, j)| [i as f32 + 0.5, j as f32 + 0.5]).collect() };
+    let step_seed = cfg.seed ^ step.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    let chunk_rays = cfg.chunk_rays.max(1);
+    // PDRF's first stage: the kernel without features, its rays through the coarse pass.
+    let progressive = match blur {
+        Some(Blur::Dsk(d)) if d.config.progressive => Some(d),
+        _ => None,
+    };
+    let mut probes: Vec<Option<Probe>> = (0..n_views).map(|_| None).collect();
+    let mut probe_pixels: Vec<(usize, usize)> = Vec::new();
+    let probe_seed = step_seed ^ 0x7064_7266;
+    if let Some(dsk) = progressive {
+        let mut noise = Rng::new(cfg.seed, 4 << 40 | step);
+        let k = dsk.config.k;
+        let size = [w as f32, h as f32];
+        for v in (0..n_views).filter(|&v| slots[v] > 0) {
+            let pixels = centres(v);
+            let jitter: Vec<[f32; 2]> =
+                (0..pixels.len() * k).map(|_| [noise.normal_f32(), noise.normal_f32()]).collect();
+            let mut ws = DskWorkspace::default();
+            dsk.forward(params, &mut ws, v, &pixels, size, Some(&jitter), None);
+            probe_pixels.extend((0..pixels.len()).map(|s| (v, s)));
+            probes[v] = Some(Probe { ws, ..Probe::default() });
+        }
+        let pass = ProbePass {
+            model,
+            data,
+            probes: &probes,
+            pixels: &probe_pixels,
+            view_pixels: &view_pixels,
+            k,
+            chunk_rays,
+            seed: probe_seed,
+        };
+        let p: &[f32] = params;
+        let out =
+            bufs.grads.run(0, probe_pixels.len(), &mut bufs.workers, |range, g, wk| pass.run(p, range, g, wk, false));
+        let nf = dsk.features;
+        let per = k * (3 + nf);
+        for (n, x) in out.concat().chunks_exact(per).enumerate() {
+            let (v, _) = probe_pixels[n];
+            let pr = probes[v].as_mut().expect("probed view");
+            pr.cols.extend(x[..3 * k].chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+            pr.feats.extend_from_slice(&x[3 * k..]);
+        }
+    }
     // The blur model of every view with pixels in the batch.
     let mut kernels: Vec<Option<ViewKernel>> = (0..n_views).map(|_| None).collect();
     if let Some(blur) = blur {
         let mut noise = Rng::new(cfg.seed, 3 << 40 | step);
         for v in (0..n_views).filter(|&v| slots[v] > 0) {
-            let pixels: Vec<[f32; 2]> = picks
-                .iter()
-                .filter_map(|p| match *p {
-                    Pick::Pixel { v: pv, i, j, .. } if pv == v => Some([i as f32 + 0.5, j as f32 + 0.5]),
-                    _ => None,
-                })
-                .collect();
-            kernels[v] = Some(ViewKernel::new(blur, params, data, v, &pixels, &mut noise));
+            let features = probes[v].as_ref().map(|p| &p.feats[..]);
+            kernels[v] = Some(ViewKernel::new(blur, params, data, v, &centres(v), &mut noise, features));
         }
     }
     // The origin ray closes every blurred pixel's group when something reads it: the rigid
@@ -636,8 +830,10 @@ pub fn step(
     let kstride = 12 * k_rays + k_rays + 1 + emb_dim;
     let luma = evc.and_then(|e| e.luma).unwrap_or(BT601).map(|x| x as f32);
     let log_eps = evc.and_then(|e| e.log_eps).unwrap_or(1e-5) as f32;
-    let step_seed = cfg.seed ^ step.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-    let chunk_rays = cfg.chunk_rays.max(1);
+    // A DSK pixel's gradients: K x (offset 2, origin 3, weight 1), then (PDRF) dL/d the first
+    // stage's coarse blurry colour.
+    let pstride = 6 * k_rays + if progressive.is_some() { 3 } else { 0 };
+    let probes_ref = &probes;
     let p: &[f32] = params;
     let ecrf = method.ecrf.as_ref();
     let batch_ref = &batch;
@@ -678,11 +874,10 @@ pub fn step(
                 let origin = a + m - 1;
                 let blurred = m > 1;
                 any_kernel |= blurred;
-                // A DSK pixel's gradients: K x (offset 2, origin 3, weight 1).
                 let pg = (blurred && is_dsk).then(|| {
                     wk.pgrad_groups.push((g0 + gi) as u32);
-                    wk.pgrad.resize(wk.pgrad.len() + 6 * k_rays, 0.0);
-                    wk.pgrad.len() - 6 * k_rays
+                    wk.pgrad.resize(wk.pgrad.len() + pstride, 0.0);
+                    wk.pgrad.len() - pstride
                 });
                 chunk_pg[gi] = pg.unwrap_or(usize::MAX);
                 for pass in 0..2 {
@@ -691,15 +886,53 @@ pub fn step(
                     let weights = blurred.then(|| &batch_ref.weights[gr.first..gr.first + m]);
                     let mut dw = [0.0f32; MAX_RAYS];
                     let scale = if blurred { blur_scale } else { img_scale };
-                    sums.image[pass] += blur_loss(
-                        &cols[a..a + m],
-                        weights,
-                        target,
-                        inv_gamma,
-                        scale,
-                        &mut dcol[a..a + m],
-                        &mut dw[..m],
-                    ) as f64;
+                    let probe = probes_ref[view as usize].as_ref().filter(|_| blurred && pass == 0);
+                    if let (Some(pr), Kind::Image { slot, .. }, Some(weights), Some(pg)) = (probe, gr.kind, weights, pg)
+                    {
+                        // PDRF's coarse loss: (first stage's blurry colour + this one) / 2.
+                        let (s, k) = (slot as usize, k_rays);
+                        let mut a_col = [0.0f32; 3];
+                        for q in s * k..(s + 1) * k {
+                            for (x, &y) in a_col.iter_mut().zip(&pr.cols[q]) {
+                                *x += pr.ws.weights[q] * y;
+                            }
+                        }
+                        let mut cols2 = [[0.0f32; 3]; MAX_RAYS + 1];
+                        let mut w2 = [0.0f32; MAX_RAYS + 1];
+                        cols2[..m].copy_from_slice(&cols[a..a + m]);
+                        cols2[m] = a_col;
+                        for (x, &wq) in w2.iter_mut().zip(weights) {
+                            *x = 0.5 * wq;
+                        }
+                        w2[m] = 0.5;
+                        let (mut dc2, mut dw2) = ([[0.0f32; 3]; MAX_RAYS + 1], [0.0f32; MAX_RAYS + 1]);
+                        sums.image[pass] += blur_loss(
+                            &cols2[..m + 1],
+                            Some(&w2[..m + 1]),
+                            target,
+                            inv_gamma,
+                            scale,
+                            &mut dc2[..m + 1],
+                            &mut dw2[..m + 1],
+                        ) as f64;
+                        dcol[a..a + m].copy_from_slice(&dc2[..m]);
+                        for q in 0..m {
+                            dw[q] = 0.5 * dw2[q];
+                        }
+                        for (x, &y) in wk.pgrad[pg + 6 * k..pg + 6 * k + 3].iter_mut().zip(&dc2[m]) {
+                            *x += y as f64;
+                        }
+                    } else {
+                        sums.image[pass] += blur_loss(
+                            &cols[a..a + m],
+                            weights,
+                            target,
+                            inv_gamma,
+                            scale,
+                            &mut dcol[a..a + m],
+                            &mut dw[..m],
+                        ) as f64;
+                    }
                     if blurred && matches!(blur, Some(Blur::Rigid(_))) {
                         let base = view as usize * kstride + 12 * k_rays;
                         for (q, d) in dw[..m].iter().enumerate() {
@@ -861,7 +1094,7 @@ pub fn step(
             let mut per_group: Vec<Option<&[f64]>> = vec![None; batch.groups.len()];
             for wk in &bufs.workers {
                 for (n, &gi) in wk.pgrad_groups.iter().enumerate() {
-                    per_group[gi as usize] = Some(&wk.pgrad[6 * k_rays * n..6 * k_rays * (n + 1)]);
+                    per_group[gi as usize] = Some(&wk.pgrad[pstride * n..pstride * (n + 1)]);
                 }
             }
             let mut by_view: Vec<Vec<&[f64]>> = vec![Vec::new(); n_views];
@@ -877,7 +1110,7 @@ pub fn step(
             for (v, vk) in kernels.iter_mut().enumerate() {
                 let Some(ws) = vk.as_mut().and_then(|vk| vk.dsk.as_mut()) else { continue };
                 let pix = &by_view[v];
-                let entries = pix.iter().flat_map(|pg| pg.chunks_exact(6));
+                let entries = pix.iter().flat_map(|pg| pg[..6 * k_rays].chunks_exact(6));
                 let mut d_off: Vec<[f32; 2]> = entries.clone().map(|e| [e[0] as f32, e[1] as f32]).collect();
                 let mut d_org: Vec<[f32; 3]> =
                     entries.clone().map(|e| [e[2] as f32, e[3] as f32, e[4] as f32]).collect();
@@ -886,6 +1119,43 @@ pub fn step(
                     dsk.align_backward(ws, align_scale, &mut d_off, &mut d_org);
                 }
                 dsk.backward(params, grads, ws, &d_off, &d_org, &d_w);
+                if let Some(pr) = probes[v].as_mut() {
+                    pr.d_feats.clone_from(&ws.d_features);
+                    pr.d_blur = pix.iter().map(|pg| std::array::from_fn(|c| pg[6 * k_rays + c] as f32)).collect();
+                }
+            }
+            // PDRF's first stage: its rays' backward (replayed with the same samples), then
+            // its kernel's.
+            if progressive.is_some() {
+                let pass = ProbePass {
+                    model,
+                    data,
+                    probes: &probes,
+                    pixels: &probe_pixels,
+                    view_pixels: &view_pixels,
+                    k: k_rays,
+                    chunk_rays,
+                    seed: probe_seed,
+                };
+                let p: &[f32] = params;
+                let out = bufs.grads.run(model.layout.len(), probe_pixels.len(), &mut bufs.workers, |range, g, wk| {
+                    pass.run(p, range, g, wk, true)
+                });
+                bufs.grads.sum_into(grads);
+                let out = out.concat();
+                let mut at = 0;
+                for (v, pr) in probes.iter_mut().enumerate() {
+                    let Some(pr) = pr.as_mut() else { continue };
+                    let n = view_pixels[v].len() * k_rays;
+                    let d = &out[5 * at..5 * (at + n)];
+                    at += n;
+                    let d_off: Vec<[f32; 2]> = d.chunks_exact(5).map(|e| [e[0], e[1]]).collect();
+                    let d_org: Vec<[f32; 3]> = d.chunks_exact(5).map(|e| [e[2], e[3], e[4]]).collect();
+                    // dL/dw'_k = <c'_k, dL/dA> of its pixel.
+                    let d_w: Vec<f32> =
+                        (0..n).map(|q| (0..3).map(|c| pr.cols[q][c] * pr.d_blur[q / k_rays][c]).sum()).collect();
+                    dsk.backward(params, grads, &mut pr.ws, &d_off, &d_org, &d_w);
+                }
             }
         }
         _ => {}

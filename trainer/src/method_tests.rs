@@ -235,6 +235,101 @@ fn dsk_ray_chain_matches_finite_differences() {
 }
 
 #[test]
+fn pdrf_first_stage_chain_matches_finite_differences() {
+    // PDRF's first stage: K = 3 kernel points -> world rays -> NDC -> coarse pass only ->
+    // (blurry colour -> loss) and (features integrated with the render weights -> a linear
+    // term standing for the second-stage kernel's use of them), against the renderer's
+    // backward with d_features from ray_features_backward, then dsk_ray_backward. The render
+    // weights of the integration are held fixed on both sides (as in the method).
+    let model = Model::new(&tiny_model());
+    let mut params: Vec<f64> = model.init(6).iter().map(|&p| p as f64).collect();
+    for p in &mut params[model.volumes[0].planes[0]..model.volumes[0].basis.w] {
+        *p *= 30.0;
+    }
+    let pose = Pose {
+        rotation: DQuat::from_rotation_y(-0.08) * DQuat::from_rotation_x(0.04),
+        position: DVec3::new(-0.05, 0.1, 0.15),
+    };
+    let (i, j) = (17, 12);
+    let offsets = [[0.0, 0.0], [-0.6, 0.8], [1.1, -0.7]];
+    let origins = [[0.0, 0.0, 0.0], [0.012, -0.01, 0.0], [-0.02, 0.015, 0.0]];
+    let weights = [0.3, 0.45, 0.25];
+    let target = [0.5, 0.35, 0.6];
+    let nf = model.coarse.shape.features;
+    let coef: Vec<f64> = (0..3 * nf).map(|x| (x as f64 * 0.83).sin()).collect();
+    let rays = |off: &[[f64; 2]; 3], org: &[[f64; 3]; 3]| -> Vec<Ray> {
+        (0..3).map(|q| dsk_ray(&K, &pose, i, j, off[q], org[q])).collect()
+    };
+    // The loss of a rendered stage; `fixed`: the render weights of the integration.
+    let loss_of = |r: &Renderer<f64>, fixed: &[f64], dc: &mut [[f64; 3]]| {
+        let mut dw = [0.0; 3];
+        let mut l = blur_loss(r.coarse(), Some(&weights), target, 1.0 / 2.2, 1.0, dc, &mut dw);
+        let ps = PassSamples { weights: fixed, ..r.last_pass(&model) };
+        let mut f = vec![0.0; nf];
+        for q in 0..3 {
+            ray_features(&ps, q, &mut f);
+            l += f.iter().zip(&coef[q * nf..(q + 1) * nf]).map(|(a, b)| a * b).sum::<f64>();
+        }
+        l
+    };
+    let world = rays(&offsets, &origins);
+    let (o, d, v) = chunk_of(&world);
+    let chunk = RayChunk { origins: &o, dirs: &d, viewdirs: &v };
+    let mut renderer = Renderer::<f64>::default();
+    let mut rngs: Vec<Rng> = (0..3).map(|r| Rng::new(11, r as u64)).collect();
+    renderer.forward_coarse(&model, &params, &chunk, Some(&mut rngs));
+    let fixed = renderer.last_pass(&model).weights.to_vec();
+    let spr = renderer.last_pass(&model).per_ray;
+    let mut dc = vec![[0.0; 3]; 3];
+    loss_of(&renderer, &fixed, &mut dc);
+    let mut dfeat = vec![0.0; 3 * spr * nf];
+    for q in 0..3 {
+        let ps = renderer.last_pass(&model);
+        ray_features_backward(&ps, q, &coef[q * nf..(q + 1) * nf], &mut dfeat[q * spr * nf..(q + 1) * spr * nf]);
+    }
+    let mut grads = model.layout.zeros::<f64>();
+    let mut d_rays = vec![RayGrad::zero(); 3];
+    renderer.backward(&model, &params, &mut grads, &chunk, &dc, &[[0.0; 3]; 3], Some(&mut d_rays), Some(&dfeat));
+    let mut replay = renderer.clone();
+    let mut loss_at = |p: &[f64], off: &[[f64; 2]; 3], org: &[[f64; 3]; 3]| {
+        let (o, d, v) = chunk_of(&rays(off, org));
+        replay.replay(&model, p, &RayChunk { origins: &o, dirs: &d, viewdirs: &v });
+        loss_of(&replay, &fixed, &mut [[0.0; 3]; 3])
+    };
+    let h = 1e-6;
+    let close = |fd: f64, an: f64| (fd - an).abs() <= 2e-6 * (1.0 + fd.abs().max(an.abs()));
+    for q in 0..3 {
+        let (d_off, d_org) = dsk_ray_backward(&K, &pose, &world[q], &d_rays[q]);
+        for c in 0..5 {
+            let mut eval = |delta: f64| {
+                let (mut off, mut org) = (offsets, origins);
+                if c < 2 {
+                    off[q][c] += delta;
+                } else {
+                    org[q][c - 2] += delta;
+                }
+                loss_at(&params, &off, &org)
+            };
+            let fd = (eval(h) - eval(-h)) / (2.0 * h);
+            let an = if c < 2 { d_off[c] } else { d_org[c - 2] };
+            assert!(close(fd, an), "point {q} input {c}: finite difference {fd}, analytic {an}");
+        }
+        assert!(d_off[0].abs() + d_off[1].abs() > 1e-7, "point {q}: no offset gradient");
+    }
+    // The field's parameters (colour and feature paths both reach them).
+    let mut reached = 0;
+    for x in 0..params.len() {
+        let (mut pp, mut pm) = (params.clone(), params.clone());
+        pp[x] += h;
+        pm[x] -= h;
+        let fd = (loss_at(&pp, &offsets, &origins) - loss_at(&pm, &offsets, &origins)) / (2.0 * h);
+        assert!(close(fd, grads[x]), "parameter {x}: finite difference {fd}, analytic {}", grads[x]);
+        reached += usize::from(grads[x].abs() > 1e-9);
+    }
+    assert!(reached > params.len() / 2, "only {reached} of {} parameters reached", params.len());
+}
+
+#[test]
 fn event_term_through_the_ecrf_matches_finite_differences() {
     let mut layout = Layout::default();
     for polarity_input in [true, false] {

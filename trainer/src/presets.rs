@@ -92,6 +92,11 @@ pub const PRESETS: &[Preset] = &[
         build: deblur_nerf,
     },
     Preset {
+        name: "pdrf",
+        description: "PDRF: progressive two-stage deformable kernel reading the coarse field's features, images only",
+        build: pdrf,
+    },
+    Preset {
         name: "bad-nerf",
         description: "BAD-NeRF: learned camera trajectory (start and end poses) inside each exposure, images only",
         build: bad_nerf,
@@ -300,6 +305,28 @@ pub fn deblur_nerf(scale: Scale) -> TrainConfig {
             batch_rays: 256,
             chunk_rays: 12,
             blur: Some(BlurConfig { dsk: Some(dsk), ..blur_only(cpu_iteration(1200)) }),
+            ..base
+        },
+    }
+}
+
+/// PDRF: the progressive kernel (`blur::dsk`, reference `*_full` settings: K = 10, from
+/// iteration 1200, no alignment loss) on the explicit + MLP field. Cpu scale: 256 pixels x 5
+/// rays per step (plus 5 first-stage coarse rays each), start scaled to the 8000-iteration
+/// budget.
+pub fn pdrf(scale: Scale) -> TrainConfig {
+    let base = nerf(scale);
+    match scale {
+        Scale::Paper => {
+            TrainConfig { blur: Some(BlurConfig { dsk: Some(DskConfig::pdrf()), ..blur_only(1200) }), ..base }
+        }
+        Scale::Cpu => TrainConfig {
+            batch_rays: 256,
+            chunk_rays: 12,
+            blur: Some(BlurConfig {
+                dsk: Some(DskConfig { k: 5, ..DskConfig::pdrf() }),
+                ..blur_only(cpu_iteration(1200))
+            }),
             ..base
         },
     }

@@ -40,6 +40,18 @@
 //! [`Dsk::forward`] runs a batch of pixels of one image into a [`DskWorkspace`];
 //! [`Dsk::backward`] takes dL/d offsets, origins and weights back to the layers, the image's
 //! embedding and its canonical points.
+//!
+//! **PDRF** (Peng & Chellappa, AAAI 2023; `progressive`, the reference's kernel type "PBE")
+//! uses the same network twice per step. Its MLP input gains the coarse field's features of the
+//! point's ray, `[ gamma(u_k pi / window) | e_i | f_k | gamma(pixel) ]`, and point 0 is pinned
+//! to the pixel (o_0 = 0, t_0 = 0; no alignment loss). Stage 1 runs the kernel with f = 0 and
+//! renders its rays with the coarse pass only: colours c'_k and features f_k (the coarse
+//! density MLP's features integrated along the ray with its render weights). Stage 2 runs the
+//! kernel with those f_k; its rays are rendered fully. The losses are the fine blurry colour
+//! sum_k w_k C_k against the image and the coarse one averaged with stage 1's,
+//! (sum_k w'_k c'_k + sum_k w_k c_k) / 2 (`crate::method`). [`Dsk::backward`] also returns dL/df
+//! (`DskWorkspace::d_features`), which reaches the field through stage 1's rays; as with the
+//! AWP, the render weights of that integration are held fixed in the backward pass.
 
 use crate::engine::encoding;
 use crate::engine::mlp::{backward_stack, forward_stack, softmax, Act, Dense};
@@ -91,6 +103,11 @@ pub struct DskConfig {
     /// Iteration after which the alignment loss is dropped (reference: 180 000 of 200 000).
     /// The kernel itself starts at `blur.start` (reference `kernel_start_iter`: 1200).
     pub align_until: u64,
+    /// PDRF's progressive blur estimation (kernel type "PBE"; module doc): point 0 is pinned
+    /// to the pixel, there is no alignment loss, and the MLP also reads the coarse field's
+    /// features of a first-stage kernel's rays. Off: Deblur-NeRF's DSK.
+    #[serde(default)]
+    pub progressive: bool,
 }
 
 impl DskConfig {
@@ -112,7 +129,14 @@ impl DskConfig {
             init_scale: 1.0,
             align_weight: 0.1,
             align_until: 180_000,
+            progressive: false,
         }
+    }
+
+    /// PDRF's kernel (its `*_full` configs): 10 points, 4 + 1 hidden layers of 64 with the
+    /// shortcut, progressive.
+    pub fn pdrf() -> DskConfig {
+        DskConfig { k: 10, hidden: vec![64; 5], progressive: true, ..DskConfig::reference() }
     }
 
     /// Checks the shape and the scales; the message names the field and the fix.
@@ -166,6 +190,9 @@ pub struct Dsk {
     pub embeddings: usize,
     /// Offset of the raw canonical points q (images x K x 2).
     pub pattern: usize,
+    /// Width of the per-point feature input (the coarse field's features; 0 unless
+    /// progressive).
+    pub features: usize,
     /// Hidden layers before the shortcut (all of them without it).
     pub trunk: Vec<Dense>,
     /// The layers after the trunk: the shortcut layer (reading [input | trunk]) if any, then
@@ -197,6 +224,8 @@ pub struct DskWorkspace<R> {
     pub origins: Vec<[R; 3]>,
     /// Each point's weight w_k (summing to 1 over a pixel's K points).
     pub weights: Vec<R>,
+    /// dL/d the feature input of each point (rows x features), written by the backward.
+    pub d_features: Vec<R>,
 }
 
 /// Width of the encoding of a 2-vector with `freqs` frequencies: 2 + 4 freqs.
@@ -236,12 +265,13 @@ fn normal(uniform: &mut impl FnMut() -> f64) -> f64 {
 
 impl Dsk {
     /// Allocates the embeddings and canonical points of `images` images and the MLP in
-    /// `layout`.
-    pub fn new(layout: &mut Layout, config: &DskConfig, images: usize) -> Dsk {
+    /// `layout`; a progressive kernel's MLP also reads `features` values per point.
+    pub fn new(layout: &mut Layout, config: &DskConfig, images: usize, features: usize) -> Dsk {
         let k = config.k;
+        let features = if config.progressive { features } else { 0 };
         let embeddings = layout.alloc("dsk.embedding", images * config.embedding, LrClass::Embedding);
         let pattern = layout.alloc("dsk.pattern", images * k * 2, LrClass::Embedding);
-        let d_in = width2(config.pe_kernel) + config.embedding + width2(config.pe_pixel);
+        let d_in = width2(config.pe_kernel) + config.embedding + features + width2(config.pe_pixel);
         let n_trunk = config.hidden.len() - usize::from(config.shortcut);
         let mut n = d_in;
         let mut trunk = Vec::new();
@@ -257,12 +287,12 @@ impl Dsk {
         }
         let n_out = if config.origin_offsets { 5 } else { 3 };
         head.push(Dense::new(layout, "dsk.out", n, n_out, true, Act::None));
-        Dsk { config: config.clone(), images, embeddings, pattern, trunk, head }
+        Dsk { config: config.clone(), images, embeddings, pattern, features, trunk, head }
     }
 
     /// Width of the MLP input.
     fn input_width(&self) -> usize {
-        width2(self.config.pe_kernel) + self.config.embedding + width2(self.config.pe_pixel)
+        width2(self.config.pe_kernel) + self.config.embedding + self.features + width2(self.config.pe_pixel)
     }
 
     /// The reference's initialisation: Xavier-normal layers with zero biases (the output
@@ -289,8 +319,11 @@ impl Dsk {
     /// The kernels of a batch of pixels of image `image`: `pixels` are positions (x, y) =
     /// (column, row) in pixels (pixel centres at +0.5), `size` = (width, height) normalises them
     /// for the encoding. `noise` (K standard-normal 2-vectors per pixel, pixel-major) jitters the
-    /// canonical points by `jitter` pixels in training; `None` evaluates without jitter. The
-    /// kernels end up in `ws.offsets`, `ws.origins` and `ws.weights`.
+    /// canonical points by `jitter` pixels in training; `None` evaluates without jitter.
+    /// `features` (progressive kernels: `features` values per point, pixel-major) is the
+    /// feature input; `None` feeds zeros (PDRF's first stage). The kernels end up in
+    /// `ws.offsets`, `ws.origins` and `ws.weights`.
+    #[allow(clippy::too_many_arguments)]
     pub fn forward<R: Real>(
         &self,
         params: &[R],
@@ -299,8 +332,9 @@ impl Dsk {
         pixels: &[[R; 2]],
         size: [R; 2],
         noise: Option<&[[R; 2]]>,
+        features: Option<&[R]>,
     ) {
-        let (k, e) = (self.config.k, self.config.embedding);
+        let (k, e, nf) = (self.config.k, self.config.embedding, self.features);
         let (wk, wp) = (width2(self.config.pe_kernel), width2(self.config.pe_pixel));
         let d_in = self.input_width();
         let n = pixels.len();
@@ -328,7 +362,11 @@ impl Dsk {
                 let row = &mut ws.x[r * d_in..(r + 1) * d_in];
                 encode2([u[0] * pi / window, u[1] * pi / window], self.config.pe_kernel, &mut ws.enc, &mut row[..wk]);
                 row[wk..wk + e].copy_from_slice(emb);
-                row[wk + e..].copy_from_slice(&ws.pix);
+                match features {
+                    Some(f) => row[wk + e..wk + e + nf].copy_from_slice(&f[r * nf..(r + 1) * nf]),
+                    None => row[wk + e..wk + e + nf].fill(R::zero()),
+                }
+                row[wk + e + nf..].copy_from_slice(&ws.pix);
                 ws.offsets.push(u);
             }
         }
@@ -375,6 +413,11 @@ impl Dsk {
         }
         for p in 0..n {
             softmax(&mut ws.weights[p * k..(p + 1) * k]);
+            if self.config.progressive {
+                // PDRF pins the reference point to the pixel.
+                ws.offsets[p * k] = [R::zero(); 2];
+                ws.origins[p * k] = [R::zero(); 3];
+            }
         }
     }
 
@@ -406,9 +449,13 @@ impl Dsk {
             for j in 0..k {
                 let r = p * k + j;
                 let g = &mut ws.g_a[r * n_out..(r + 1) * n_out];
+                g[2] = w[j] * (dw[j] - mean);
+                if self.config.progressive && j == 0 {
+                    // The pinned point's offset and origin do not depend on the MLP.
+                    continue;
+                }
                 g[0] = so * d_offsets[r][0];
                 g[1] = so * d_offsets[r][1];
-                g[2] = w[j] * (dw[j] - mean);
                 if self.config.origin_offsets {
                     g[3] = st * d_origins[r][0];
                     g[4] = st * d_origins[r][1];
@@ -454,15 +501,20 @@ impl Dsk {
         let (pi, window) = (R::of(PI), R::of(self.config.window));
         let mut d_emb = vec![R::zero(); e];
         let mut d_c = vec![[R::zero(); 2]; k];
+        let nf = self.features;
+        ws.d_features.clear();
         for r in 0..rows {
             let gx = &ws.g_x[r * d_in..(r + 1) * d_in];
             for (d, &g) in d_emb.iter_mut().zip(&gx[wk..wk + e]) {
                 *d += g;
             }
+            ws.d_features.extend_from_slice(&gx[wk + e..wk + e + nf]);
             let x = &ws.x[r * d_in..r * d_in + wk];
             let du = backward2(x, &gx[..wk], self.config.pe_kernel, &mut ws.enc, &mut ws.d_enc);
+            // o = u + ... except for a pinned point.
+            let direct = if self.config.progressive && r % k == 0 { [R::zero(); 2] } else { d_offsets[r] };
             for a in 0..2 {
-                d_c[r % k][a] += d_offsets[r][a] + du[a] * pi / window;
+                d_c[r % k][a] += direct[a] + du[a] * pi / window;
             }
         }
         let emb = self.embeddings + image * e;
@@ -536,7 +588,7 @@ mod tests {
         }
     }
 
-    fn small(shortcut: bool, origin_offsets: bool) -> DskConfig {
+    fn small(shortcut: bool, origin_offsets: bool, progressive: bool) -> DskConfig {
         DskConfig {
             k: 3,
             embedding: 4,
@@ -551,13 +603,14 @@ mod tests {
             offset_scale: 0.7,
             origin_scale: 0.05,
             init_scale: 0.5,
+            progressive,
             ..DskConfig::reference()
         }
     }
 
     fn setup(cfg: &DskConfig) -> (Dsk, Layout, Vec<f64>) {
         let mut layout = Layout::default();
-        let dsk = Dsk::new(&mut layout, cfg, 2);
+        let dsk = Dsk::new(&mut layout, cfg, 2, 3);
         let mut params = layout.zeros::<f64>();
         dsk.init(&mut params, &mut lcg(5));
         (dsk, layout, params)
@@ -567,8 +620,8 @@ mod tests {
     const SIZE: [f64; 2] = [8.0, 6.0];
 
     #[allow(clippy::needless_range_loop)]
-    fn check(shortcut: bool, origin_offsets: bool) {
-        let cfg = small(shortcut, origin_offsets);
+    fn check(shortcut: bool, origin_offsets: bool, progressive: bool) {
+        let cfg = small(shortcut, origin_offsets, progressive);
         let (dsk, layout, mut params) = setup(&cfg);
         // Move away from the zero embedding and biases so every path carries gradient.
         let mut u = lcg(3);
@@ -585,17 +638,21 @@ mod tests {
         let a: Vec<[f64; 2]> = (0..n * k).map(|r| [(r as f64 * 0.37).sin(), (r as f64 * 0.53).cos()]).collect();
         let b: Vec<[f64; 3]> = (0..n * k).map(|r| std::array::from_fn(|c| ((3 * r + c) as f64 * 0.29).cos())).collect();
         let c: Vec<f64> = (0..n * k).map(|r| (r as f64 * 1.3).sin()).collect();
+        let nf = dsk.features;
+        let f0: Vec<f64> = (0..n * k * nf).map(|i| (i as f64 * 0.71).sin()).collect();
+        let feats = progressive.then_some(&f0[..]);
         let align_scale = 0.3;
-        let loss = |p: &[f64]| {
+        let loss_f = |p: &[f64], f: Option<&[f64]>| {
             let mut ws = DskWorkspace::default();
-            dsk.forward(p, &mut ws, image, &PIXELS, SIZE, Some(&noise));
+            dsk.forward(p, &mut ws, image, &PIXELS, SIZE, Some(&noise), f);
             let lo: f64 = ws.offsets.iter().zip(&a).map(|(o, a)| o[0] * a[0] + o[1] * a[1]).sum();
             let lt: f64 = ws.origins.iter().zip(&b).map(|(t, b)| (0..3).map(|i| t[i] * b[i]).sum::<f64>()).sum();
             let lw: f64 = ws.weights.iter().zip(&c).map(|(w, c)| w * c).sum();
             lo + lt + lw + align_scale * dsk.align(&ws)
         };
+        let loss = |p: &[f64]| loss_f(p, feats);
         let mut ws = DskWorkspace::default();
-        dsk.forward(&params, &mut ws, image, &PIXELS, SIZE, Some(&noise));
+        dsk.forward(&params, &mut ws, image, &PIXELS, SIZE, Some(&noise), feats);
         for p in 0..n {
             assert!((ws.weights[p * k..(p + 1) * k].iter().sum::<f64>() - 1.0).abs() < 1e-12);
         }
@@ -613,6 +670,25 @@ mod tests {
             let fd = (loss(&p) - loss(&m)) / (2.0 * h);
             assert!((fd - grads[i]).abs() <= 1e-7 * (1.0 + fd.abs()), "param {i}: fd {fd} analytic {}", grads[i]);
         }
+        // The feature input (progressive): dL/df against finite differences; point 0 pinned.
+        assert_eq!(nf, if progressive { 3 } else { 0 });
+        assert_eq!(ws.d_features.len(), n * k * nf);
+        for i in 0..f0.len() {
+            let (mut p, mut m) = (f0.clone(), f0.clone());
+            p[i] += h;
+            m[i] -= h;
+            let fd = (loss_f(&params, Some(&p)) - loss_f(&params, Some(&m))) / (2.0 * h);
+            let an = ws.d_features[i];
+            assert!((fd - an).abs() <= 1e-7 * (1.0 + fd.abs()), "feature {i}: fd {fd} analytic {an}");
+            assert!(an.abs() > 1e-9, "feature {i} has no gradient");
+        }
+        if progressive {
+            for p in 0..n {
+                assert_eq!(ws.offsets[p * k], [0.0; 2]);
+                assert_eq!(ws.origins[p * k], [0.0; 3]);
+                assert!(ws.offsets[p * k + 1] != [0.0; 2]);
+            }
+        }
         // Image 0's embedding and points get exactly nothing, image 1's every entry something;
         // every layer tensor is reached.
         let (e, pat) = (cfg.embedding, dsk.pattern);
@@ -627,26 +703,31 @@ mod tests {
 
     #[test]
     fn backward_matches_finite_differences_with_shortcut_and_origins() {
-        check(true, true);
+        check(true, true, false);
     }
 
     #[test]
     fn backward_matches_finite_differences_plain() {
-        check(false, false);
+        check(false, false, false);
+    }
+
+    #[test]
+    fn progressive_backward_matches_finite_differences() {
+        check(true, true, true);
     }
 
     #[test]
     fn reference_kernel_starts_near_the_identity() {
         let cfg = DskConfig::reference();
         let mut layout = Layout::default();
-        let dsk = Dsk::new(&mut layout, &cfg, 3);
+        let dsk = Dsk::new(&mut layout, &cfg, 3, 0);
         let mut params = layout.zeros::<f32>();
         dsk.init(&mut params, &mut lcg(17));
         let size = [400.0f32, 300.0];
         let pixels: Vec<[f32; 2]> =
             (0..50).map(|i| [(i * 37 % 400) as f32 + 0.5, (i * 53 % 300) as f32 + 0.5]).collect();
         let mut ws = DskWorkspace::default();
-        dsk.forward(&params, &mut ws, 2, &pixels, size, None);
+        dsk.forward(&params, &mut ws, 2, &pixels, size, None, None);
         // The reference's start (same bounds hold over 40 seeds): the points within a few
         // pixels of the centre, each within ~2 px of its image's canonical point window tanh(q)
         // (spread ~ window * pattern_init = 1 px), weights within ~50% of 1/K, origin shifts

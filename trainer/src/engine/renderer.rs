@@ -228,13 +228,32 @@ impl<R: Real> Renderer<R> {
     /// jittered, importance samples are random and density noise is added; otherwise all three
     /// are deterministic. The colours are then in [`coarse`](Self::coarse) and
     /// [`fine`](Self::fine).
-    pub fn forward(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>, mut rngs: Option<&mut [Rng]>) {
+    pub fn forward(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>, rngs: Option<&mut [Rng]>) {
+        self.forward_passes(model, params, chunk, rngs, true);
+    }
+
+    /// [`forward`](Self::forward) with the coarse pass only (PDRF's first stage): the
+    /// colours, [`last_pass`](Self::last_pass) and [`backward`](Self::backward) are then the
+    /// coarse pass's, and each ray draws the same random numbers as the coarse part of a full
+    /// forward.
+    pub fn forward_coarse(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>, rngs: Option<&mut [Rng]>) {
+        self.forward_passes(model, params, chunk, rngs, false);
+    }
+
+    fn forward_passes(
+        &mut self,
+        model: &Model,
+        params: &[R],
+        chunk: &RayChunk<R>,
+        mut rngs: Option<&mut [Rng]>,
+        fine: bool,
+    ) {
         let rays = chunk.origins.len();
         let cfg = &model.config;
         let (nc, nf) = (cfg.n_coarse, model.samples_fine());
         self.rays = rays;
         self.train = rngs.is_some();
-        self.fine_pass = cfg.n_fine > 0;
+        self.fine_pass = fine && cfg.n_fine > 0;
         self.coarse.resize(rays, nc);
         self.fine.resize(rays, nf);
         self.t_imp.resize(cfg.n_fine, R::zero());

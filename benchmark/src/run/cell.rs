@@ -156,7 +156,8 @@ impl CellRun<'_> {
             };
             (record, ck)
         } else {
-            let mut config = cell.config.clone();
+            // The thread count it starts with is recorded (evtrain resumes bit for bit with it).
+            let mut config = TrainConfig { threads: self.threads, ..cell.config.clone() };
             trainer::method::resolve(&mut config, data);
             let record =
                 RunRecord { preset: method.preset.name.to_string(), scale: plan.scale, data: data_abs, config };

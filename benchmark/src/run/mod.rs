@@ -169,7 +169,9 @@ pub fn run(plan: &MatrixPlan, opts: &RunOptions) -> Result<RunSummary, BenchErro
             summary.failed.push((dir, BenchError::results(&scene.dataset_dir(&plan.results), e.clone())));
             continue;
         }
-        progress.cell_phase(&format!("{} dataset", scene.name));
+        if !dataset::is_complete(&scene.dataset_dir(&plan.results)) {
+            progress.cell_phase(&format!("{} simulating", scene.name));
+        }
         let data_dir = match dataset::ensure(scene, &plan.results, opts.shard) {
             Ok((d, simulated)) => {
                 if simulated {

@@ -17,6 +17,10 @@ pub struct Progress {
     multi: MultiProgress,
     matrix: ProgressBar,
     cell: ProgressBar,
+    /// The cell bar while it trains.
+    steps_style: ProgressStyle,
+    /// The cell bar in the phases without steps.
+    phase_style: ProgressStyle,
     bars: bool,
     quiet: bool,
 }
@@ -31,8 +35,10 @@ impl Progress {
         let matrix = multi.add(ProgressBar::new(total_steps));
         matrix.set_style(style("matrix {msg:>12} [{elapsed_precise}] {wide_bar} {pos}/{len} steps (eta {eta})"));
         let cell = multi.add(ProgressBar::new(0));
-        cell.set_style(style("{msg:>19} [{elapsed_precise}] {wide_bar} {pos}/{len} (eta {eta})"));
-        Progress { multi, matrix, cell, bars, quiet }
+        let steps_style = style("{msg:>19} [{elapsed_precise}] {wide_bar} {pos}/{len} (eta {eta})");
+        let phase_style = style("{msg:>19} [{elapsed_precise}]");
+        cell.set_style(phase_style.clone());
+        Progress { multi, matrix, cell, steps_style, phase_style, bars, quiet }
     }
 
     /// Prints a line above the bars (or to stdout without them).
@@ -59,14 +65,17 @@ impl Progress {
 
     /// Starts the cell bar: `msg`, at `start` of `len` steps.
     pub fn cell_start(&self, msg: &str, start: u64, len: u64) {
+        self.cell.set_style(self.steps_style.clone());
         self.cell.set_length(len);
         self.cell.set_position(start);
+        self.cell.reset_elapsed();
         self.cell.reset_eta();
         self.cell.set_message(msg.to_string());
     }
 
     /// Shows a phase of the current cell without steps (loading, simulating, evaluating).
     pub fn cell_phase(&self, msg: &str) {
+        self.cell.set_style(self.phase_style.clone());
         self.cell.set_message(msg.to_string());
     }
 

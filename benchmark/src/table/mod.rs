@@ -13,7 +13,7 @@
 //! rows or more). Two results for one method, scene and seed (e.g. a stale cell from an older
 //! matrix) are an error: delete one, or pass the matrix to keep its cells only.
 //!
-//! - [`format`]: Markdown, CSV and LaTeX.
+//! - [`format`](mod@format): Markdown, CSV and LaTeX.
 //! - [`manifest`]: what a table was made from (versions, commits, keys, seeds, machines, times).
 
 pub mod format;

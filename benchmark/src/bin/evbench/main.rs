@@ -55,7 +55,7 @@ enum Cmd {
     Table {
         /// The results folder of `evbench run`.
         results: PathBuf,
-        /// Folder for <form>.md, .csv, .tex and .manifest.json (default: RESULTS).
+        /// Folder for FORM.md, FORM.csv, FORM.tex and FORM.manifest.json (default: RESULTS).
         #[arg(long)]
         out: Option<PathBuf>,
         /// table1 (rows = methods) or ablation (rows = switch combinations).

@@ -1,7 +1,24 @@
-//! Benchmark: image metrics beyond the trainer's PSNR / SSIM; the run matrix, sweeps and tables
-//! are to come (see the issue tracker).
+//! Benchmark: turns "these methods on these scenes with these settings" into the paper's tables
+//! (binary `evbench`: `run` a matrix, `table` its results).
 //!
+//! What lives where:
+//! - [`matrix`]: the run-matrix file, its resolution into cells with keys, shards.
+//! - [`run`]: running cells: simulating missing datasets, training (resumable), scoring.
+//! - [`metrics`]: a finished cell's `metrics.json`.
+//! - [`table`]: merging finished cells into Table 1 / ablation tables (Markdown, CSV, LaTeX)
+//!   with a manifest.
 //! - [`lpips`]: LPIPS (Zhang et al. 2018, AlexNet, v0.1) from a weights file exported from the
 //!   `lpips` Python package by `scripts/export_lpips_weights.py`.
+//! - [`error`]: the error type, [`BenchError`].
+//!
+//! PSNR and SSIM are the trainer's (`trainer::metrics`, checked against scikit-image).
+#![warn(missing_docs)]
 
+pub mod error;
 pub mod lpips;
+pub mod matrix;
+pub mod metrics;
+pub mod run;
+pub mod table;
+
+pub use error::BenchError;

@@ -1,0 +1,185 @@
+//! `evbench`: run a benchmark matrix (simulate -> train -> score, resumable, shardable) and
+//! merge its finished cells into the paper's tables.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+
+use benchmark::matrix::{MatrixPlan, SceneSource, Shard};
+use benchmark::run::{self, CellStatus, RunOptions};
+use benchmark::table::{self, Form, Selection};
+
+#[derive(Parser)]
+#[command(name = "evbench", version, about = "Run benchmark matrices of evblur methods and make the paper's tables")]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run the cells of a matrix (methods x scenes x seeds) that are not finished: simulate
+    /// missing datasets, train (resuming from checkpoints), score; Ctrl-C stops after the
+    /// current step with a checkpoint.
+    Run {
+        /// The run-matrix file (TOML; fields in benchmark/src/matrix/config.rs).
+        config: PathBuf,
+        /// Run part i of n (1-based): the cells at positions p with p % n == i - 1 in key
+        /// order, the same split on every machine.
+        #[arg(long, value_name = "i/n")]
+        shard: Option<Shard>,
+        /// Results folder (default: the file's `results`, else runs/bench).
+        #[arg(long)]
+        results: Option<PathBuf>,
+        /// LPIPS weights (default: $EVBLUR_LPIPS_WEIGHTS); without them LPIPS is n/a.
+        #[arg(long)]
+        lpips_weights: Option<PathBuf>,
+        /// Worker threads for training and scoring (0: all cores). A cell resumes bit for bit
+        /// only with the thread count it started with.
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// List the shard's cells and their status, run nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// No progress bars or per-cell lines (the final summary is still printed).
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Merge the finished cells under RESULTS (any shards, any machines) into a table as
+    /// Markdown, CSV and LaTeX, with a manifest.
+    Table {
+        /// The results folder of `evbench run`.
+        results: PathBuf,
+        /// Folder for FORM.md, FORM.csv, FORM.tex and FORM.manifest.json (default: RESULTS).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// table1 (rows = methods) or ablation (rows = switch combinations).
+        #[arg(long, default_value = "table1")]
+        form: Form,
+        /// Keep only this matrix's cells, scenes in its order (default: every finished cell).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    match cli.cmd {
+        Cmd::Run { config, shard, results, lpips_weights, threads, dry_run, quiet } => {
+            let plan = MatrixPlan::load(&config, results.as_deref())?;
+            let shard = shard.unwrap_or_default();
+            if dry_run {
+                return list(&plan, shard);
+            }
+            let code = run_matrix(&plan, shard, lpips_weights, threads, quiet)?;
+            std::process::exit(code);
+        }
+        Cmd::Table { results, out, form, config } => {
+            let selection = match &config {
+                Some(c) => Some(Selection::of(&MatrixPlan::load(c, Some(&results))?)),
+                None => None,
+            };
+            let t = table::build(&results, form, selection.as_ref())?;
+            print!("{}", table::format::markdown(&t));
+            let files = table::manifest::write_all(&t, &results, out.as_deref().unwrap_or(&results))?;
+            let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+            println!("{} cells; wrote {}", t.cells.len(), names.join(", "));
+            Ok(())
+        }
+    }
+}
+
+/// `run --dry-run`: the shard's cells with their status.
+fn list(plan: &MatrixPlan, shard: Shard) -> Result<()> {
+    let cells = run::shard_cells(plan, shard);
+    println!("{}: {} cells, {} in shard {shard}", plan.file.display(), plan.cells.len(), cells.len());
+    for scene in &plan.scenes {
+        let dir = scene.dataset_dir(&plan.results);
+        let state = if run::dataset::is_complete(&dir) { "present" } else { "missing" };
+        let from = match &scene.source {
+            SceneSource::Simulate(p) => format!("simulated from {}", p.scene_file.display()),
+            SceneSource::Folder(_) => "a dataset folder".to_string(),
+        };
+        println!("scene {}: {from} -> {} ({state})", scene.name, dir.display());
+    }
+    println!("{:<16}  {:<12} {:<20} {:>6} {:>10}  status", "key", "scene", "method", "seed", "iterations");
+    for c in cells {
+        let status = match run::status(plan, c)? {
+            CellStatus::Done { lpips: true } => "done".to_string(),
+            CellStatus::Done { lpips: false } => "done (no LPIPS)".to_string(),
+            CellStatus::Partial { step } => format!("partial (step {step})"),
+            CellStatus::Todo => "to do".to_string(),
+        };
+        println!(
+            "{:<16}  {:<12} {:<20} {:>6} {:>10}  {status}",
+            c.key, plan.scenes[c.scene].name, plan.methods[c.method].name, c.seed, c.config.iterations
+        );
+    }
+    Ok(())
+}
+
+/// `run`: the exit code (0 done, 1 a cell failed, 130 stopped by Ctrl-C).
+fn run_matrix(
+    plan: &MatrixPlan,
+    shard: Shard,
+    lpips_weights: Option<PathBuf>,
+    threads: usize,
+    quiet: bool,
+) -> Result<i32> {
+    let start = Instant::now();
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || {
+            if stop.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!(
+                "\nstopping after this training step with a checkpoint (or once the dataset being simulated is \
+                 written); Ctrl-C again to quit now (rendered frames are kept)"
+            );
+        })
+        .context("cannot install the Ctrl-C handler")?;
+    }
+    let lpips_weights = benchmark::lpips::weights_path(lpips_weights.as_deref());
+    if lpips_weights.is_none() && !quiet {
+        println!("no LPIPS weights (--lpips-weights or ${}): LPIPS will be n/a", benchmark::lpips::WEIGHTS_ENV);
+    }
+    let opts = RunOptions {
+        shard,
+        lpips_weights,
+        threads,
+        bars: std::io::stderr().is_terminal(),
+        quiet,
+        stop: Some(&stop),
+        stop_after_steps: None,
+    };
+    let s = run::run(plan, &opts)?;
+    println!(
+        "shard {shard}: {} cells: {} already done, {} trained, {} resumed, {} scored only, {} failed; {} datasets simulated; {:.1} s",
+        s.cells,
+        s.skipped,
+        s.trained,
+        s.resumed,
+        s.scored,
+        s.failed.len(),
+        s.simulated,
+        start.elapsed().as_secs_f64()
+    );
+    for (dir, e) in &s.failed {
+        eprintln!("failed: {}: {e}", dir.display());
+    }
+    Ok(if s.interrupted {
+        println!("stopped; run the same command again to resume");
+        130
+    } else if !s.failed.is_empty() {
+        1
+    } else {
+        0
+    })
+}

@@ -1,0 +1,180 @@
+//! The run-matrix file as written: methods x scenes x seeds at one scale. Unknown keys are
+//! errors; [`super::plan`] checks the values and resolves the file into cells.
+//!
+//! ```toml
+//! scale = "cpu"                    # cpu | paper: the presets' scale
+//! iterations = 400                 # optional: every cell's training iterations
+//! seeds = [0]                      # training seeds; one cell per method x scene x seed
+//! results = "runs/quick"           # optional: results folder (relative to the working dir)
+//! set = ["eval_every=0"]           # optional: overrides for every method (evtrain --set)
+//!
+//! [dataset]                        # optional: simulator overrides for every simulated scene
+//! width = 300
+//! height = 200
+//!
+//! [[methods]]
+//! preset = "nerf"                  # evtrain presets
+//!
+//! [[methods]]
+//! preset = "ev-deblurnerf"
+//! name = "ev-deblurnerf-no-edi"    # needed with `set`: the table row and results folder
+//! set = ["edi=none"]
+//!
+//! [[scenes]]
+//! scene = "../../scenes/tiny/scene.toml"   # simulated (relative to this file)
+//! dataset = { spp = 2 }                     # optional: this scene's overrides
+//!
+//! [[scenes]]
+//! name = "blurfactory"
+//! data = "/data/ev-deblurblender/blurfactory"  # an existing dataset folder
+//! ```
+
+use std::path::PathBuf;
+
+use serde::Deserialize;
+use simulator::dataset::{NoisePattern, Overrides};
+use trainer::presets::Scale;
+
+/// A run-matrix file.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MatrixConfig {
+    /// The presets' scale: `cpu` (sized for 2 cores) or `paper` (the reference settings).
+    pub scale: Scale,
+    /// Training iterations of every cell (count); default: each preset's at this scale.
+    #[serde(default)]
+    pub iterations: Option<u64>,
+    /// Training seeds (initialisation, batches, noise); each method x scene runs once per seed.
+    #[serde(default = "default_seeds")]
+    pub seeds: Vec<u64>,
+    /// The results folder, relative to the working directory (not to this file);
+    /// `evbench run --results` overrides it. Default `runs/bench`.
+    #[serde(default)]
+    pub results: Option<PathBuf>,
+    /// Overrides applied to every method before its own, `KEY=VALUE` in `evtrain --set` syntax
+    /// (a dotted path of `evtrain presets --show NAME`; `none` switches a part off).
+    #[serde(default)]
+    pub set: Vec<String>,
+    /// Simulator overrides for every simulated scene (a scene's own `dataset` wins per field).
+    #[serde(default)]
+    pub dataset: DatasetOverrides,
+    /// The methods: the rows of the table.
+    pub methods: Vec<MethodEntry>,
+    /// The scenes: the column groups of the table.
+    pub scenes: Vec<SceneEntry>,
+}
+
+fn default_seeds() -> Vec<u64> {
+    vec![0]
+}
+
+/// One method (a row of the table).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MethodEntry {
+    /// A preset of the trainer's registry (`evtrain presets`).
+    pub preset: String,
+    /// The row label and results folder name (letters, digits, `-`, `_`, `.`, `+`); default the
+    /// preset name, required when `set` is given.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// This method's overrides, `KEY=VALUE` in `evtrain --set` syntax, applied after the
+    /// matrix's `set` (the ablation switches: `edi=none`, `blur.awp=none`, ...).
+    #[serde(default)]
+    pub set: Vec<String>,
+}
+
+/// One scene (a column group of the table): exactly one of `scene` and `data`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneEntry {
+    /// The column label and results folder name (letters, digits, `-`, `_`, `.`, `+`); default
+    /// the scene's folder name (`scenes/tiny/scene.toml` -> `tiny`) or the dataset folder's.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// A scene file (`scene.toml` with a `[trajectory]`, or its folder) to simulate, relative
+    /// to this matrix file; the dataset goes to `<results>/datasets/<hash>/` (reused if there).
+    #[serde(default)]
+    pub scene: Option<PathBuf>,
+    /// An existing dataset folder (ours or a public Ev-DeblurBlender one), relative to this
+    /// matrix file; used as it is (no overrides).
+    #[serde(default)]
+    pub data: Option<PathBuf>,
+    /// This scene's simulator overrides, over the matrix's `[dataset]` field by field.
+    #[serde(default)]
+    pub dataset: DatasetOverrides,
+}
+
+/// Simulator overrides: what `evsim dataset`'s flags change (`simulator::dataset::Overrides`).
+/// Unset fields keep the scene file's value.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DatasetOverrides {
+    /// `[dataset] exposure_ms`: shutter time of the blurry views (ms).
+    pub exposure_ms: Option<f64>,
+    /// `[dataset] fps`: rendered frames per second (Hz).
+    pub fps: Option<f64>,
+    /// `[events] c_pos` and `c_neg`: the contrast threshold (log intensity).
+    pub threshold: Option<f32>,
+    /// `[dataset] width` (pixels).
+    pub width: Option<u32>,
+    /// `[dataset] height` (pixels).
+    pub height: Option<u32>,
+    /// `[dataset] spp`: samples per pixel of every frame.
+    pub spp: Option<u32>,
+    /// `[dataset] sharp_spp`: samples per pixel of the sharp renders.
+    pub sharp_spp: Option<u32>,
+    /// `[dataset] views`: number of images (count).
+    pub views: Option<u32>,
+    /// `[dataset] seed`: the renderer's seed.
+    pub seed: Option<u64>,
+    /// `[dataset] noise_pattern`: `fixed` or `per_frame`.
+    pub noise_pattern: Option<NoisePattern>,
+    /// `[dataset] clamp`: largest channel of one path contribution (radiance; 0 = off).
+    pub clamp: Option<f32>,
+    /// `[dataset] light_samples`: light samples per path vertex (count).
+    pub light_samples: Option<u32>,
+}
+
+impl DatasetOverrides {
+    /// True when nothing is overridden.
+    pub fn is_empty(&self) -> bool {
+        *self == DatasetOverrides::default()
+    }
+
+    /// These overrides, with `over`'s set fields taking precedence.
+    pub fn merged(&self, over: &DatasetOverrides) -> DatasetOverrides {
+        DatasetOverrides {
+            exposure_ms: over.exposure_ms.or(self.exposure_ms),
+            fps: over.fps.or(self.fps),
+            threshold: over.threshold.or(self.threshold),
+            width: over.width.or(self.width),
+            height: over.height.or(self.height),
+            spp: over.spp.or(self.spp),
+            sharp_spp: over.sharp_spp.or(self.sharp_spp),
+            views: over.views.or(self.views),
+            seed: over.seed.or(self.seed),
+            noise_pattern: over.noise_pattern.or(self.noise_pattern),
+            clamp: over.clamp.or(self.clamp),
+            light_samples: over.light_samples.or(self.light_samples),
+        }
+    }
+
+    /// The simulator's overrides.
+    pub fn to_simulator(&self) -> Overrides {
+        Overrides {
+            exposure_ms: self.exposure_ms,
+            fps: self.fps,
+            threshold: self.threshold,
+            width: self.width,
+            height: self.height,
+            spp: self.spp,
+            sharp_spp: self.sharp_spp,
+            views: self.views,
+            seed: self.seed,
+            noise_pattern: self.noise_pattern,
+            clamp: self.clamp,
+            light_samples: self.light_samples,
+        }
+    }
+}

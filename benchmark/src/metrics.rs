@@ -1,0 +1,223 @@
+//! `metrics.json`: a finished cell's scores and where they came from. Written atomically
+//! (temporary file + rename) as the cell's last file, so its presence marks the cell done;
+//! `evbench table` reads nothing else.
+//!
+//! Scores are on whole test images in [0, 1] (no cropping or alignment): PSNR (dB) and SSIM as
+//! scikit-image (`trainer::metrics`), LPIPS-alex v0.1 (`crate::lpips`) or `null` when no weights
+//! were given. The means are over the test views.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use trainer::presets::Scale;
+
+use crate::error::BenchError;
+
+/// Format version of `metrics.json`.
+pub const FORMAT: u32 = 1;
+/// File name of a cell's metrics.
+pub const FILE: &str = "metrics.json";
+
+/// One test view's scores.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ViewMetrics {
+    /// File name in the dataset's `images_1/` (and the render's in `eval/`).
+    pub name: String,
+    /// PSNR (dB).
+    pub psnr: f64,
+    /// SSIM (unitless, at most 1).
+    pub ssim: f64,
+    /// LPIPS (unitless, lower is better); `None` without weights.
+    pub lpips: Option<f64>,
+}
+
+/// The machine a cell ran on.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Machine {
+    /// Host name (`/proc/sys/kernel/hostname`, `$HOSTNAME`, or `unknown`).
+    pub hostname: String,
+    /// Logical CPUs available to the process.
+    pub cpus: usize,
+}
+
+impl Machine {
+    /// This machine.
+    pub fn current() -> Machine {
+        let hostname = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .ok()
+            .or_else(|| std::env::var("HOSTNAME").ok())
+            .map(|h| h.trim().to_string())
+            .filter(|h| !h.is_empty())
+            .unwrap_or_else(|| "unknown".into());
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+        Machine { hostname, cpus }
+    }
+}
+
+/// The git commit of the evblur source tree this binary was built from (`git rev-parse HEAD`
+/// in it, at run time, with `-dirty` when tracked files differ), or `unknown`.
+pub fn git_commit() -> String {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let git = |args: &[&str]| std::process::Command::new("git").arg("-C").arg(src).args(args).output().ok();
+    let Some(head) = git(&["rev-parse", "HEAD"]).filter(|o| o.status.success()) else { return "unknown".into() };
+    let mut commit = String::from_utf8_lossy(&head.stdout).trim().to_string();
+    if git(&["diff", "--quiet", "HEAD"]).is_some_and(|o| o.status.code() == Some(1)) {
+        commit.push_str("-dirty");
+    }
+    commit
+}
+
+/// A finished cell.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CellMetrics {
+    /// [`FORMAT`].
+    pub format: u32,
+    /// evbench's version.
+    pub tool_version: String,
+    /// The cell key (module `matrix::identity`).
+    pub key: String,
+    /// Method label (the table row).
+    pub method: String,
+    /// The preset.
+    pub preset: String,
+    /// The method's own overrides (its ablation switches).
+    pub switches: Vec<String>,
+    /// Every override applied, the matrix's first.
+    pub set: Vec<String>,
+    /// The presets' scale.
+    pub scale: Scale,
+    /// Scene label (the column group).
+    pub scene: String,
+    /// The dataset identity (64 hex digits).
+    pub dataset: String,
+    /// Training seed.
+    pub seed: u64,
+    /// Training iterations done.
+    pub steps: u64,
+    /// Mean PSNR over the test views (dB).
+    pub psnr: f64,
+    /// Mean SSIM over the test views.
+    pub ssim: f64,
+    /// Mean LPIPS over the test views; `None` without weights.
+    pub lpips: Option<f64>,
+    /// Per test view.
+    pub views: Vec<ViewMetrics>,
+    /// Training time over every session of the run (s; the trainer's count, evaluations
+    /// excluded).
+    pub train_seconds: f64,
+    /// Time of the final evaluation (s).
+    pub eval_seconds: f64,
+    /// Wall time of the session that finished the cell, from loading the dataset to writing
+    /// this file (s).
+    pub wall_seconds: f64,
+    /// Worker threads of that session.
+    pub threads: usize,
+    /// Where that session ran.
+    pub machine: Machine,
+    /// Source commit of that session's binary ([`git_commit`]).
+    pub git_commit: String,
+}
+
+impl CellMetrics {
+    /// Writes `dir/metrics.json` atomically.
+    pub fn write(&self, dir: &Path) -> Result<(), BenchError> {
+        let path = dir.join(FILE);
+        // JSON has no NaN or infinity (serde_json would write null): refuse rather than mislabel.
+        let views =
+            self.views.iter().flat_map(|v| [("psnr", v.psnr), ("ssim", v.ssim), ("lpips", v.lpips.unwrap_or(0.0))]);
+        let scores = [("psnr", self.psnr), ("ssim", self.ssim), ("lpips", self.lpips.unwrap_or(0.0))];
+        if let Some((name, v)) = scores.into_iter().chain(views).find(|(_, v)| !v.is_finite()) {
+            return Err(BenchError::results(
+                &path,
+                format!("{name} = {v}: a score is not finite (a render or test view holds NaN, or they are identical); check the run"),
+            ));
+        }
+        let text = serde_json::to_string_pretty(self)
+            .map_err(|e| BenchError::results(&path, format!("cannot encode ({e})")))?;
+        simulator::image_io::write_atomic(&path, format!("{text}\n").as_bytes())
+            .map_err(|e| BenchError::results(&path, format!("{e:#}")))
+    }
+
+    /// Reads `path` (a `metrics.json`).
+    pub fn read(path: &Path) -> Result<CellMetrics, BenchError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| BenchError::results(path, format!("cannot read ({e}); check permissions")))?;
+        let m: CellMetrics = serde_json::from_str(&text).map_err(|e| {
+            BenchError::results(
+                path,
+                format!("not an evbench metrics file ({e}); delete it to evaluate the cell again"),
+            )
+        })?;
+        if m.format != FORMAT {
+            return Err(BenchError::results(
+                path,
+                format!("metrics format {}, this build reads {FORMAT}; delete it to evaluate the cell again", m.format),
+            ));
+        }
+        Ok(m)
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A synthetic finished cell (one view holding the means).
+    pub(crate) fn cell(method: &str, scene: &str, seed: u64, scores: (f64, Option<f64>, f64)) -> CellMetrics {
+        let (psnr, lpips, ssim) = scores;
+        let preset = trainer::presets::preset(method).map_or("nerf", |p| p.name).to_string();
+        CellMetrics {
+            format: FORMAT,
+            tool_version: "test".into(),
+            key: crate::matrix::identity::sha256_hex(format!("{method}/{scene}/{seed}").as_bytes())[..16].into(),
+            method: method.into(),
+            preset,
+            switches: vec![],
+            set: vec![],
+            scale: Scale::Cpu,
+            scene: scene.into(),
+            dataset: "d".repeat(64),
+            seed,
+            steps: 10,
+            psnr,
+            ssim,
+            lpips,
+            views: vec![ViewMetrics { name: "00.png".into(), psnr, ssim, lpips }],
+            train_seconds: 1.0,
+            eval_seconds: 0.5,
+            wall_seconds: 2.0,
+            threads: 2,
+            machine: Machine { hostname: "test".into(), cpus: 2 },
+            git_commit: "unknown".into(),
+        }
+    }
+
+    #[test]
+    fn writes_atomically_and_reads_back() {
+        let dir = std::env::temp_dir().join(format!("evbench-metrics-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let m = cell("nerf", "tiny", 0, (20.5, None, 0.5));
+        m.write(&dir).unwrap();
+        assert_eq!(CellMetrics::read(&dir.join(FILE)).unwrap(), m);
+        // Only metrics.json is left: the temporary file was renamed into place.
+        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, [FILE]);
+        let text = std::fs::read_to_string(dir.join(FILE)).unwrap();
+        assert!(text.contains("\"lpips\": null"), "{text}");
+
+        // A non-finite score is refused, and the previous file stays whole.
+        let bad = CellMetrics { psnr: f64::NAN, ..m.clone() };
+        let err = bad.write(&dir).unwrap_err().to_string();
+        assert!(err.contains("metrics.json") && err.contains("not finite"), "{err}");
+        assert_eq!(CellMetrics::read(&dir.join(FILE)).unwrap(), m);
+
+        // A damaged file names itself and the fix.
+        std::fs::write(dir.join(FILE), "{\"format\": 1").unwrap();
+        let err = CellMetrics::read(&dir.join(FILE)).unwrap_err().to_string();
+        assert!(err.contains("metrics.json") && err.contains("delete it"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,225 @@
+//! One cell: train the method on the scene's dataset in the cell's folder (a trainer run folder,
+//! resumed from its checkpoint when one is there), then score the test views and write
+//! `metrics.json`.
+//!
+//! The folder's `config.toml` is written as `evtrain` writes it, so `evtrain train --resume
+//! --out <cell>` and `evtrain eval <cell>` work on it too. A resumed run continues bit for bit
+//! when it runs with the same thread count (the trainer's guarantee); the count is recorded in
+//! `metrics.json`.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use trainer::checkpoint::Checkpoint;
+use trainer::config::TrainConfig;
+use trainer::data::dataset::{Dataset, LoadOptions};
+use trainer::method::Method;
+use trainer::presets::Scale;
+use trainer::train::{RunPaths, TrainOptions, Trainer};
+
+use super::evaluate::{means, score_views};
+use super::progress::Progress;
+use crate::error::BenchError;
+use crate::lpips::Lpips;
+use crate::matrix::{Cell, MatrixPlan};
+use crate::metrics::{CellMetrics, Machine, FORMAT};
+
+/// What a trainer run's `config.toml` holds (the layout `evtrain` writes and reads).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunRecord {
+    /// The preset's name.
+    pub preset: String,
+    /// Its scale.
+    pub scale: Scale,
+    /// The dataset folder (absolute).
+    pub data: PathBuf,
+    /// The resolved configuration (volume box and event model filled in from the dataset).
+    pub config: TrainConfig,
+}
+
+impl RunRecord {
+    /// Reads `path`.
+    pub fn read(path: &Path) -> Result<RunRecord, BenchError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| BenchError::results(path, format!("cannot read ({e}); check permissions")))?;
+        toml::from_str(&text).map_err(|e| {
+            BenchError::results(
+                path,
+                format!("not a run config ({}); delete the cell's folder to train it again", e.message()),
+            )
+        })
+    }
+
+    /// Writes `path` atomically.
+    pub fn write(&self, path: &Path) -> Result<(), BenchError> {
+        let text = toml::to_string(self).map_err(|e| BenchError::results(path, format!("cannot encode ({e})")))?;
+        simulator::image_io::write_atomic(path, text.as_bytes())
+            .map_err(|e| BenchError::results(path, format!("{e:#}")))
+    }
+}
+
+/// The last dataset loaded, kept for the next cell on the same scene.
+#[derive(Default)]
+pub struct DatasetCache {
+    loaded: Option<(PathBuf, bool, Dataset)>,
+}
+
+impl DatasetCache {
+    /// The dataset in `dir`, with its events when `events` (loaded unless the last one fits).
+    pub fn get(&mut self, dir: &Path, events: bool) -> Result<&Dataset, BenchError> {
+        let hit = matches!(&self.loaded, Some((d, e, _)) if d == dir && (*e || !events));
+        if !hit {
+            self.loaded = None;
+            let opts = LoadOptions { read_events: events, read_sharp: true, ..LoadOptions::default() };
+            self.loaded = Some((dir.to_owned(), events, Dataset::load(dir, &opts)?));
+        }
+        Ok(&self.loaded.as_ref().expect("loaded above").2)
+    }
+}
+
+/// How a cell ended.
+#[derive(Debug)]
+pub enum Outcome {
+    /// Scored; `from` is the step training started at (0: a new run; the iteration count:
+    /// only scored).
+    Finished {
+        /// The metrics written.
+        metrics: Box<CellMetrics>,
+        /// First step trained in this session.
+        from: u64,
+    },
+    /// Stopped (Ctrl-C) at this step, with a checkpoint.
+    Interrupted {
+        /// Iterations done.
+        step: u64,
+    },
+}
+
+/// What a cell needs from the run.
+pub struct CellRun<'a> {
+    /// The plan.
+    pub plan: &'a MatrixPlan,
+    /// LPIPS, when weights were given.
+    pub lpips: Option<&'a Lpips>,
+    /// Worker threads (0: all cores).
+    pub threads: usize,
+    /// The evaluation pool (`threads` workers).
+    pub pool: &'a rayon::ThreadPool,
+    /// Set by Ctrl-C: stop after the current step.
+    pub stop: Option<&'a AtomicBool>,
+    /// Stop as Ctrl-C would after this many steps (tests).
+    pub stop_after_steps: Option<u64>,
+    /// The bars.
+    pub progress: &'a Progress,
+    /// The short source commit, recorded in the metrics.
+    pub git_commit: &'a str,
+}
+
+impl CellRun<'_> {
+    /// Trains (or resumes) `cell` on the dataset in `data_dir` and scores it.
+    pub fn run(&self, cell: &Cell, data_dir: &Path, datasets: &mut DatasetCache) -> Result<Outcome, BenchError> {
+        let t0 = Instant::now();
+        let (plan, method, scene) = (self.plan, &self.plan.methods[cell.method], &self.plan.scenes[cell.scene]);
+        let dir = plan.cell_dir(cell);
+        let run = RunPaths::new(&dir);
+        let label = format!("{}/{} s{}", scene.name, method.name, cell.seed);
+        self.progress.cell_phase(&format!("{label} loading"));
+        let data = datasets.get(data_dir, cell.config.needs_events())?;
+        let data_abs = std::fs::canonicalize(data_dir)
+            .map_err(|e| BenchError::results(data_dir, format!("cannot resolve the dataset folder ({e})")))?;
+
+        // The run record: the cell's own when it was started before, else a new one.
+        let (mut record, checkpoint) = if run.config().is_file() {
+            let mut record = RunRecord::read(&run.config())?;
+            if record.preset != method.preset.name {
+                return Err(BenchError::results(
+                    &run.config(),
+                    format!(
+                        "holds a run of preset {}, not {}; delete the cell's folder to train it again",
+                        record.preset, method.preset.name
+                    ),
+                ));
+            }
+            if record.data != data_abs {
+                // The results folder moved; the key says it is the same dataset.
+                record.data = data_abs;
+                record.write(&run.config())?;
+            }
+            let layout = Method::new(&record.config, data.views.len());
+            let ck = if run.checkpoint().is_file() {
+                Some(Checkpoint::load(layout.layout(), &run.checkpoint())?)
+            } else {
+                None
+            };
+            (record, ck)
+        } else {
+            // The thread count it starts with is recorded (evtrain resumes bit for bit with it).
+            let mut config = TrainConfig { threads: self.threads, ..cell.config.clone() };
+            trainer::method::resolve(&mut config, data);
+            let record =
+                RunRecord { preset: method.preset.name.to_string(), scale: plan.scale, data: data_abs, config };
+            std::fs::create_dir_all(&dir)
+                .map_err(|e| BenchError::results(&dir, format!("cannot create the cell's folder ({e})")))?;
+            record.write(&run.config())?;
+            (record, None)
+        };
+        record.config.threads = self.threads;
+        let iterations = record.config.iterations;
+
+        let mut trainer = Trainer::new_in(data, record.config.clone(), checkpoint, Some(&dir))?;
+        let from = trainer.step;
+        if from < iterations {
+            self.progress.cell_start(&label, from, iterations);
+            let max_steps = self.stop_after_steps.map(|n| from + n);
+            let opts = TrainOptions { progress: false, stop: self.stop, max_steps };
+            self.progress.watch(&run.log(), || trainer.train(&run, &opts))?;
+            self.progress.move_cell_to(trainer.step);
+            let stopped = self.stop.is_some_and(|s| s.load(Ordering::SeqCst)) || max_steps.is_some();
+            if trainer.step < iterations && stopped {
+                return Ok(Outcome::Interrupted { step: trainer.step });
+            }
+        }
+
+        self.progress.cell_phase(&format!("{label} scoring"));
+        let t_eval = Instant::now();
+        let views = score_views(
+            data,
+            &trainer.method.model,
+            &trainer.params,
+            &trainer.cfg,
+            self.lpips,
+            self.pool,
+            &run.eval(),
+        )?;
+        let (psnr, ssim, lpips) = means(&views);
+        let metrics = CellMetrics {
+            format: FORMAT,
+            tool_version: env!("CARGO_PKG_VERSION").into(),
+            key: cell.key.clone(),
+            method: method.name.clone(),
+            preset: method.preset.name.into(),
+            switches: method.switches.clone(),
+            set: method.set.clone(),
+            scale: plan.scale,
+            scene: scene.name.clone(),
+            dataset: scene.identity.clone(),
+            seed: cell.seed,
+            steps: trainer.step,
+            psnr,
+            ssim,
+            lpips,
+            views,
+            train_seconds: trainer.seconds,
+            eval_seconds: t_eval.elapsed().as_secs_f64(),
+            wall_seconds: t0.elapsed().as_secs_f64(),
+            threads: if self.threads == 0 { rayon::current_num_threads() } else { self.threads },
+            machine: Machine::current(),
+            git_commit: self.git_commit.into(),
+        };
+        metrics.write(&dir)?;
+        Ok(Outcome::Finished { metrics: Box::new(metrics), from })
+    }
+}

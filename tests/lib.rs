@@ -6,8 +6,10 @@
 //! end: layout, re-runs, resume, thread counts, the noise measurement), `scene_library.rs`
 //! (every dataset scene in `scenes/` makes a dataset that passes the check),
 //! `metrics_skimage.rs` (the trainer's PSNR / SSIM against scikit-image), `lpips_numpy.rs`
-//! (the benchmark's LPIPS against a numpy reference, on random weights) and `trainer_runs.rs`
-//! (every preset's smoke run, bit-exact resume, run errors and `evtrain` end to end).
+//! (the benchmark's LPIPS against a numpy reference, on random weights), `trainer_runs.rs`
+//! (every preset's smoke run, bit-exact resume, run errors and `evtrain` end to end) and
+//! `bench_runs.rs` (`evbench` end to end: sharded runs merge into the unsharded table, finished
+//! cells are skipped, LPIPS re-scoring, the binary's errors).
 //!
 //! This library holds what those files share: fresh temp folders, `.npy` writing and the reference Python
 //! (the Mitsuba venv, which also has numpy, h5py and scikit-image), skipped or required by

@@ -143,3 +143,15 @@ fn a_dataset_folder_is_named_after_itself_and_keyed_by_its_content() {
     assert_ne!(load(&d, text).unwrap().cells[0].key, key);
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn the_shipped_table_configs_list_every_preset_in_registry_order() {
+    let registry: Vec<&str> = trainer::presets::PRESETS.iter().map(|p| p.name).collect();
+    for name in ["table1.toml", "paper.toml"] {
+        let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs").join(name);
+        let text = std::fs::read_to_string(&file).unwrap();
+        let cfg: crate::matrix::config::MatrixConfig = toml::from_str(&text).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let listed: Vec<&str> = cfg.methods.iter().map(|m| m.preset.as_str()).collect();
+        assert_eq!(listed, registry, "{name} must list every preset of the registry");
+    }
+}

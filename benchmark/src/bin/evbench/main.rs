@@ -2,7 +2,7 @@
 //! merge its finished cells into the paper's tables.
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -77,6 +77,8 @@ fn main() -> Result<()> {
                 return list(&plan, shard);
             }
             let code = run_matrix(&plan, shard, lpips_weights, threads, quiet)?;
+            // The table of this matrix's finished cells (all shards' so far).
+            write_table(&plan.results, Form::Table1, Some(&Selection::of(&plan)), None)?;
             std::process::exit(code);
         }
         Cmd::Table { results, out, form, config } => {
@@ -84,14 +86,20 @@ fn main() -> Result<()> {
                 Some(c) => Some(Selection::of(&MatrixPlan::load(c, Some(&results))?)),
                 None => None,
             };
-            let t = table::build(&results, form, selection.as_ref())?;
-            print!("{}", table::format::markdown(&t));
-            let files = table::manifest::write_all(&t, &results, out.as_deref().unwrap_or(&results))?;
-            let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
-            println!("{} cells; wrote {}", t.cells.len(), names.join(", "));
-            Ok(())
+            write_table(&results, form, selection.as_ref(), out.as_deref())
         }
     }
+}
+
+/// Builds the table of the finished cells under `results`, prints it as Markdown and writes
+/// the Markdown, CSV, LaTeX and manifest files into `out` (default `results`).
+fn write_table(results: &Path, form: Form, selection: Option<&Selection>, out: Option<&Path>) -> Result<()> {
+    let t = table::build(results, form, selection)?;
+    print!("{}", table::format::markdown(&t));
+    let files = table::manifest::write_all(&t, results, out.unwrap_or(results))?;
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    println!("{} cells; wrote {}", t.cells.len(), names.join(", "));
+    Ok(())
 }
 
 /// `run --dry-run`: the shard's cells with their status.

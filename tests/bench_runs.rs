@@ -252,26 +252,7 @@ fn lpips_weights_score_finished_cells_again_without_training() {
 /// cargo first: binaries of another package are not built for this crate's tests.
 fn evbench() -> &'static Path {
     static EXE: OnceLock<PathBuf> = OnceLock::new();
-    EXE.get_or_init(|| {
-        let this = std::env::current_exe().unwrap();
-        let profile_dir = this.parent().and_then(Path::parent).expect("target/<profile>/deps/<test>");
-        let target_dir = profile_dir.parent().expect("target/<profile>");
-        let profile = profile_dir.file_name().unwrap().to_string_lossy().into_owned();
-        let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
-        let mut cmd = Command::new(env!("CARGO"));
-        cmd.args(["build", "--quiet", "-p", "evblur-benchmark", "--bin", "evbench", "--manifest-path"])
-            .arg(&manifest)
-            .arg("--target-dir")
-            .arg(target_dir);
-        if profile != "debug" {
-            cmd.args(["--profile", &profile]);
-        }
-        let out = cmd.output().unwrap();
-        assert!(out.status.success(), "cargo build --bin evbench failed:\n{}", String::from_utf8_lossy(&out.stderr));
-        let exe = profile_dir.join(format!("evbench{}", std::env::consts::EXE_SUFFIX));
-        assert!(exe.is_file(), "{} is missing after the build", exe.display());
-        exe
-    })
+    EXE.get_or_init(|| evblur_tests::workspace_binary("evblur-benchmark", "evbench"))
 }
 
 fn evbench_run(args: &[&str]) -> Output {

@@ -78,3 +78,27 @@ where
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// The binary `bin` of the workspace package `package`, built (or brought up to date) by cargo
+/// into the calling test's target folder and profile first: binaries of another package are not
+/// built for a crate's tests.
+pub fn workspace_binary(package: &str, bin: &str) -> std::path::PathBuf {
+    let this = std::env::current_exe().unwrap();
+    let profile_dir = this.parent().and_then(std::path::Path::parent).expect("target/<profile>/deps/<test>");
+    let target_dir = profile_dir.parent().expect("target/<profile>");
+    let profile = profile_dir.file_name().unwrap().to_string_lossy().into_owned();
+    let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
+    let mut cmd = std::process::Command::new(env!("CARGO"));
+    cmd.args(["build", "--quiet", "-p", package, "--bin", bin, "--manifest-path"])
+        .arg(&manifest)
+        .arg("--target-dir")
+        .arg(target_dir);
+    if profile != "debug" {
+        cmd.args(["--profile", &profile]);
+    }
+    let out = cmd.output().unwrap();
+    assert!(out.status.success(), "cargo build --bin {bin} failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    let exe = profile_dir.join(format!("{bin}{}", std::env::consts::EXE_SUFFIX));
+    assert!(exe.is_file(), "{} is missing after the build", exe.display());
+    exe
+}

@@ -110,6 +110,21 @@ pub fn scene_bounds(data: &Dataset) -> Aabb {
     Aabb { min: [lo[0] - pad(0), lo[1] - pad(1), -1.0], max: [hi[0] + pad(0), hi[1] + pad(1), 1.0] }
 }
 
+/// What a run folder's `config.toml` holds (written by `evtrain train` and `evbench run`, read
+/// on resume and evaluation).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunRecord {
+    /// The preset's name.
+    pub preset: String,
+    /// Its scale.
+    pub scale: crate::presets::Scale,
+    /// The dataset folder (absolute).
+    pub data: PathBuf,
+    /// The resolved configuration (volume box and event model filled in from the dataset).
+    pub config: TrainConfig,
+}
+
 /// Files of a run folder.
 #[derive(Clone, Debug)]
 pub struct RunPaths {

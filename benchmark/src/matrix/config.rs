@@ -32,7 +32,7 @@
 use std::path::PathBuf;
 
 use serde::Deserialize;
-use simulator::dataset::{NoisePattern, Overrides};
+use simulator::dataset::Overrides;
 use trainer::presets::Scale;
 
 /// A run-matrix file.
@@ -105,76 +105,6 @@ pub struct SceneEntry {
     pub dataset: DatasetOverrides,
 }
 
-/// Simulator overrides: what `evsim dataset`'s flags change (`simulator::dataset::Overrides`).
-/// Unset fields keep the scene file's value.
-#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DatasetOverrides {
-    /// `[dataset] exposure_ms`: shutter time of the blurry views (ms).
-    pub exposure_ms: Option<f64>,
-    /// `[dataset] fps`: rendered frames per second (Hz).
-    pub fps: Option<f64>,
-    /// `[events] c_pos` and `c_neg`: the contrast threshold (log intensity).
-    pub threshold: Option<f32>,
-    /// `[dataset] width` (pixels).
-    pub width: Option<u32>,
-    /// `[dataset] height` (pixels).
-    pub height: Option<u32>,
-    /// `[dataset] spp`: samples per pixel of every frame.
-    pub spp: Option<u32>,
-    /// `[dataset] sharp_spp`: samples per pixel of the sharp renders.
-    pub sharp_spp: Option<u32>,
-    /// `[dataset] views`: number of images (count).
-    pub views: Option<u32>,
-    /// `[dataset] seed`: the renderer's seed.
-    pub seed: Option<u64>,
-    /// `[dataset] noise_pattern`: `fixed` or `per_frame`.
-    pub noise_pattern: Option<NoisePattern>,
-    /// `[dataset] clamp`: largest channel of one path contribution (radiance; 0 = off).
-    pub clamp: Option<f32>,
-    /// `[dataset] light_samples`: light samples per path vertex (count).
-    pub light_samples: Option<u32>,
-}
-
-impl DatasetOverrides {
-    /// True when nothing is overridden.
-    pub fn is_empty(&self) -> bool {
-        *self == DatasetOverrides::default()
-    }
-
-    /// These overrides, with `over`'s set fields taking precedence.
-    pub fn merged(&self, over: &DatasetOverrides) -> DatasetOverrides {
-        DatasetOverrides {
-            exposure_ms: over.exposure_ms.or(self.exposure_ms),
-            fps: over.fps.or(self.fps),
-            threshold: over.threshold.or(self.threshold),
-            width: over.width.or(self.width),
-            height: over.height.or(self.height),
-            spp: over.spp.or(self.spp),
-            sharp_spp: over.sharp_spp.or(self.sharp_spp),
-            views: over.views.or(self.views),
-            seed: over.seed.or(self.seed),
-            noise_pattern: over.noise_pattern.or(self.noise_pattern),
-            clamp: over.clamp.or(self.clamp),
-            light_samples: over.light_samples.or(self.light_samples),
-        }
-    }
-
-    /// The simulator's overrides.
-    pub fn to_simulator(&self) -> Overrides {
-        Overrides {
-            exposure_ms: self.exposure_ms,
-            fps: self.fps,
-            threshold: self.threshold,
-            width: self.width,
-            height: self.height,
-            spp: self.spp,
-            sharp_spp: self.sharp_spp,
-            views: self.views,
-            seed: self.seed,
-            noise_pattern: self.noise_pattern,
-            clamp: self.clamp,
-            light_samples: self.light_samples,
-        }
-    }
-}
+/// Simulator overrides of a matrix's or a scene's `[dataset]` table (the simulator's own type;
+/// unknown keys rejected).
+pub type DatasetOverrides = Overrides;

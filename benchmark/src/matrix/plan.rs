@@ -274,8 +274,7 @@ fn resolve_scenes(file: &Path, base: &Path, cfg: &MatrixConfig) -> Result<Vec<Sc
         }
         let (source, identity) = if simulate {
             let overrides: DatasetOverrides = cfg.dataset.merged(&s.dataset);
-            let plan = simulator::dataset::Plan::resolve(&path, &overrides.to_simulator())
-                .map_err(|e| bad(field, format!("{e}")))?;
+            let plan = simulator::dataset::Plan::resolve(&path, &overrides).map_err(|e| bad(field, format!("{e}")))?;
             let identity = plan.settings_hash.clone();
             (SceneSource::Simulate(Box::new(plan)), identity)
         } else {

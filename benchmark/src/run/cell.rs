@@ -11,12 +11,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use serde::{Deserialize, Serialize};
 use trainer::checkpoint::Checkpoint;
 use trainer::config::TrainConfig;
 use trainer::data::dataset::{Dataset, LoadOptions};
 use trainer::method::Method;
-use trainer::presets::Scale;
 use trainer::train::{RunPaths, TrainOptions, Trainer};
 
 use super::evaluate::{means, score_views};
@@ -26,39 +24,24 @@ use crate::lpips::Lpips;
 use crate::matrix::{Cell, MatrixPlan};
 use crate::metrics::{CellMetrics, Machine, FORMAT};
 
-/// What a trainer run's `config.toml` holds (the layout `evtrain` writes and reads).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RunRecord {
-    /// The preset's name.
-    pub preset: String,
-    /// Its scale.
-    pub scale: Scale,
-    /// The dataset folder (absolute).
-    pub data: PathBuf,
-    /// The resolved configuration (volume box and event model filled in from the dataset).
-    pub config: TrainConfig,
+pub use trainer::train::RunRecord;
+
+/// Reads a run's `config.toml` at `path`.
+pub fn read_record(path: &Path) -> Result<RunRecord, BenchError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| BenchError::results(path, format!("cannot read ({e}); check permissions")))?;
+    toml::from_str(&text).map_err(|e| {
+        BenchError::results(
+            path,
+            format!("not a run config ({}); delete the cell's folder to train it again", e.message()),
+        )
+    })
 }
 
-impl RunRecord {
-    /// Reads `path`.
-    pub fn read(path: &Path) -> Result<RunRecord, BenchError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| BenchError::results(path, format!("cannot read ({e}); check permissions")))?;
-        toml::from_str(&text).map_err(|e| {
-            BenchError::results(
-                path,
-                format!("not a run config ({}); delete the cell's folder to train it again", e.message()),
-            )
-        })
-    }
-
-    /// Writes `path` atomically.
-    pub fn write(&self, path: &Path) -> Result<(), BenchError> {
-        let text = toml::to_string(self).map_err(|e| BenchError::results(path, format!("cannot encode ({e})")))?;
-        simulator::image_io::write_atomic(path, text.as_bytes())
-            .map_err(|e| BenchError::results(path, format!("{e:#}")))
-    }
+/// Writes `record` to `path` atomically.
+pub fn write_record(record: &RunRecord, path: &Path) -> Result<(), BenchError> {
+    let text = toml::to_string(record).map_err(|e| BenchError::results(path, format!("cannot encode ({e})")))?;
+    simulator::image_io::write_atomic(path, text.as_bytes()).map_err(|e| BenchError::results(path, format!("{e:#}")))
 }
 
 /// The last dataset loaded, kept for the next cell on the same scene.
@@ -133,7 +116,7 @@ impl CellRun<'_> {
 
         // The run record: the cell's own when it was started before, else a new one.
         let (mut record, checkpoint) = if run.config().is_file() {
-            let mut record = RunRecord::read(&run.config())?;
+            let mut record = read_record(&run.config())?;
             if record.preset != method.preset.name {
                 return Err(BenchError::results(
                     &run.config(),
@@ -146,7 +129,7 @@ impl CellRun<'_> {
             if record.data != data_abs {
                 // The results folder moved; the key says it is the same dataset.
                 record.data = data_abs;
-                record.write(&run.config())?;
+                write_record(&record, &run.config())?;
             }
             let layout = Method::new(&record.config, data.views.len());
             let ck = if run.checkpoint().is_file() {
@@ -163,7 +146,7 @@ impl CellRun<'_> {
                 RunRecord { preset: method.preset.name.to_string(), scale: plan.scale, data: data_abs, config };
             std::fs::create_dir_all(&dir)
                 .map_err(|e| BenchError::results(&dir, format!("cannot create the cell's folder ({e})")))?;
-            record.write(&run.config())?;
+            write_record(&record, &run.config())?;
             (record, None)
         };
         record.config.threads = self.threads;

@@ -113,36 +113,61 @@ impl Default for DatasetConfig {
     }
 }
 
-/// Command-line overrides of the scene's settings (`None` = keep the file's value).
-#[derive(Clone, Debug, Default, PartialEq)]
+/// Overrides of the scene's settings (`None` = keep the file's value): `evsim`'s command-line
+/// flags and a benchmark matrix's `[dataset]` tables (unknown keys rejected).
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Overrides {
-    /// `[dataset] exposure_ms`.
+    /// `[dataset] exposure_ms`: shutter time of the blurry views (ms).
     pub exposure_ms: Option<f64>,
-    /// `[dataset] fps`.
+    /// `[dataset] fps`: rendered frames per second (Hz).
     pub fps: Option<f64>,
-    /// Both `[events] c_pos` and `c_neg`.
+    /// Both `[events] c_pos` and `c_neg`: the contrast threshold (log intensity).
     pub threshold: Option<f32>,
-    /// `[dataset] width`.
+    /// `[dataset] width` (pixels).
     pub width: Option<u32>,
-    /// `[dataset] height`.
+    /// `[dataset] height` (pixels).
     pub height: Option<u32>,
-    /// `[dataset] spp`.
+    /// `[dataset] spp`: samples per pixel of every frame.
     pub spp: Option<u32>,
-    /// `[dataset] sharp_spp`.
+    /// `[dataset] sharp_spp`: samples per pixel of the sharp renders.
     pub sharp_spp: Option<u32>,
-    /// `[dataset] views`.
+    /// `[dataset] views`: number of images (count).
     pub views: Option<u32>,
-    /// `[dataset] seed`.
+    /// `[dataset] seed`: the renderer's seed.
     pub seed: Option<u64>,
-    /// `[dataset] noise_pattern`.
+    /// `[dataset] noise_pattern`: `fixed` or `per_frame`.
     pub noise_pattern: Option<NoisePattern>,
-    /// `[dataset] clamp`.
+    /// `[dataset] clamp`: largest channel of one path contribution (radiance; 0 = off).
     pub clamp: Option<f32>,
-    /// `[dataset] light_samples`.
+    /// `[dataset] light_samples`: light samples per path vertex (count).
     pub light_samples: Option<u32>,
 }
 
 impl Overrides {
+    /// True when nothing is overridden.
+    pub fn is_empty(&self) -> bool {
+        *self == Overrides::default()
+    }
+
+    /// These overrides, with `over`'s set fields taking precedence.
+    pub fn merged(&self, over: &Overrides) -> Overrides {
+        Overrides {
+            exposure_ms: over.exposure_ms.or(self.exposure_ms),
+            fps: over.fps.or(self.fps),
+            threshold: over.threshold.or(self.threshold),
+            width: over.width.or(self.width),
+            height: over.height.or(self.height),
+            spp: over.spp.or(self.spp),
+            sharp_spp: over.sharp_spp.or(self.sharp_spp),
+            views: over.views.or(self.views),
+            seed: over.seed.or(self.seed),
+            noise_pattern: over.noise_pattern.or(self.noise_pattern),
+            clamp: over.clamp.or(self.clamp),
+            light_samples: over.light_samples.or(self.light_samples),
+        }
+    }
+
     /// Apply the overrides to the file's tables.
     pub fn apply(&self, d: &mut DatasetConfig, ev: &mut crate::events::EventConfig) {
         let set = |dst: &mut f64, v: Option<f64>| {

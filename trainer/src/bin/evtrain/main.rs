@@ -13,7 +13,7 @@ use trainer::data::dataset::{Dataset, LoadOptions};
 use trainer::engine::model::Model;
 use trainer::method::Method;
 use trainer::presets::{self, Scale};
-use trainer::train::{RunPaths, TrainOptions, Trainer};
+use trainer::train::{RunPaths, RunRecord, TrainOptions, Trainer};
 
 #[derive(Parser)]
 #[command(name = "evtrain", version, about = "Train and evaluate deblurring radiance fields on evblur datasets")]
@@ -88,16 +88,6 @@ enum Cmd {
         #[arg(long, default_value_t = 7)]
         reps: usize,
     },
-}
-
-/// What `config.toml` of a run holds.
-#[derive(serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RunRecord {
-    preset: String,
-    scale: Scale,
-    data: PathBuf,
-    config: TrainConfig,
 }
 
 fn main() -> Result<()> {

@@ -99,8 +99,13 @@ fn run_dir(name: &str) -> RunPaths {
 /// Trains `cfg` from scratch (or from `ck`) into `run`, up to `max_steps`.
 fn train(cfg: &TrainConfig, ck: Option<Checkpoint>, run: &RunPaths, max_steps: Option<u64>) -> Vec<LogRow> {
     let mut t = Trainer::new(dataset(), cfg.clone(), ck).unwrap_or_else(|e| panic!("{e}"));
-    let rows = t.train(run, &TrainOptions { max_steps, ..TrainOptions::default() }).unwrap_or_else(|e| panic!("{e}"));
+    let seen = std::sync::Mutex::new(Vec::new());
+    let on_step = |s: u64| seen.lock().unwrap().push(s);
+    let opts = TrainOptions { max_steps, on_step: Some(&on_step), ..TrainOptions::default() };
+    let rows = t.train(run, &opts).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(t.step, max_steps.unwrap_or(cfg.iterations));
+    // The step callback saw every step, in order.
+    assert_eq!(*seen.lock().unwrap(), rows.iter().map(|r| r.step).collect::<Vec<_>>());
     rows
 }
 

@@ -181,7 +181,7 @@ pub struct LogRow {
 }
 
 /// Options that do not change the result.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Default)]
 pub struct TrainOptions<'a> {
     /// Show a progress bar.
     pub progress: bool,
@@ -189,6 +189,20 @@ pub struct TrainOptions<'a> {
     pub stop: Option<&'a AtomicBool>,
     /// Stop after this many iterations even if the config asks for more (tests, benchmarks).
     pub max_steps: Option<u64>,
+    /// Called after every step with its number, once the step is logged (e.g. to move a
+    /// caller's progress bar).
+    pub on_step: Option<&'a (dyn Fn(u64) + Sync)>,
+}
+
+impl std::fmt::Debug for TrainOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TrainOptions")
+            .field("progress", &self.progress)
+            .field("stop", &self.stop)
+            .field("max_steps", &self.max_steps)
+            .field("on_step", &self.on_step.is_some())
+            .finish()
+    }
 }
 
 /// The state of a training run.
@@ -339,6 +353,9 @@ impl<'a> Trainer<'a> {
             bar.set_position(self.step);
             log.push(&row)?;
             rows.push(row);
+            if let Some(f) = opts.on_step {
+                f(self.step);
+            }
             let stop = opts.stop.is_some_and(|s| s.load(Ordering::SeqCst));
             if self.step.is_multiple_of(self.cfg.checkpoint_every) || self.step == end || stop {
                 self.checkpoint().save(self.method.layout(), &run.checkpoint())?;

@@ -157,8 +157,9 @@ impl CellRun<'_> {
         if from < iterations {
             self.progress.cell_start(&label, from, iterations);
             let max_steps = self.stop_after_steps.map(|n| from + n);
-            let opts = TrainOptions { progress: false, stop: self.stop, max_steps };
-            self.progress.watch(&run.log(), || trainer.train(&run, &opts))?;
+            let on_step = |step: u64| self.progress.move_cell_to(step);
+            let opts = TrainOptions { progress: false, stop: self.stop, max_steps, on_step: Some(&on_step) };
+            trainer.train(&run, &opts)?;
             self.progress.move_cell_to(trainer.step);
             let stopped = self.stop.is_some_and(|s| s.load(Ordering::SeqCst)) || max_steps.is_some();
             if trainer.step < iterations && stopped {

@@ -3,12 +3,8 @@
 //! steps, with ETA), drawn on stderr; log lines go above them. Without bars (not a terminal, or
 //! `--quiet`) the lines go to stdout, and `quiet` silences them too.
 //!
-//! The trainer reports no steps while it trains, so the cell bar follows the run's `log.csv`
-//! (flushed every 50 steps and at every evaluation), polled by [`Progress::watch`].
-
-use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
+//! The trainer reports each step through `TrainOptions::on_step`, which moves both bars
+//! ([`Progress::move_cell_to`]).
 
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -79,25 +75,6 @@ impl Progress {
         self.cell.set_message(msg.to_string());
     }
 
-    /// Moves the cell bar (and the matrix bar by as much) while `f` runs, from the steps in
-    /// `log` (the run's `log.csv`); returns `f`'s result.
-    pub fn watch<T>(&self, log: &Path, f: impl FnOnce() -> T) -> T {
-        let done = AtomicBool::new(false);
-        std::thread::scope(|s| {
-            s.spawn(|| {
-                while !done.load(Ordering::Relaxed) {
-                    std::thread::sleep(Duration::from_millis(250));
-                    if let Some(step) = last_step(log) {
-                        self.move_cell_to(step);
-                    }
-                }
-            });
-            let out = f();
-            done.store(true, Ordering::Relaxed);
-            out
-        })
-    }
-
     /// Moves the cell bar forward to `step` and the matrix bar by the same number of steps.
     pub fn move_cell_to(&self, step: u64) {
         let pos = self.cell.position();
@@ -114,31 +91,19 @@ impl Progress {
     }
 }
 
-/// The step of the last row of a trainer log (`step,...` lines after a header).
-fn last_step(log: &Path) -> Option<u64> {
-    let text = std::fs::read_to_string(log).ok()?;
-    text.lines().last()?.split(',').next()?.parse().ok()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn the_last_log_row_gives_the_step() {
-        let dir = std::env::temp_dir().join(format!("evbench-progress-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let log = dir.join("log.csv");
-        assert_eq!(last_step(&log), None);
-        std::fs::write(&log, "step,seconds\n").unwrap();
-        assert_eq!(last_step(&log), None);
-        std::fs::write(&log, "step,seconds\n1,0.1\n50,2.0\n").unwrap();
-        assert_eq!(last_step(&log), Some(50));
+    fn steps_move_the_cell_and_the_matrix_bars_forward_only() {
         let p = Progress::new(false, true, 100);
-        p.cell_start("x", 0, 60);
-        p.watch(&log, || std::thread::sleep(Duration::from_millis(600)));
-        assert_eq!(p.cell.position(), 50);
-        assert_eq!(p.matrix.position(), 50);
-        std::fs::remove_dir_all(&dir).unwrap();
+        p.cell_start("x", 10, 60);
+        p.move_cell_to(50);
+        assert_eq!((p.cell.position(), p.matrix.position()), (50, 40));
+        // Backwards or past the cell's end: nothing moves.
+        p.move_cell_to(30);
+        p.move_cell_to(61);
+        assert_eq!((p.cell.position(), p.matrix.position()), (50, 40));
     }
 }

@@ -253,7 +253,7 @@ fn train(
         })
         .context("cannot install the Ctrl-C handler")?;
     }
-    let rows = trainer.train(&run, &TrainOptions { progress: !quiet, stop: Some(&stop), max_steps: None })?;
+    let rows = trainer.train(&run, &TrainOptions { progress: !quiet, stop: Some(&stop), ..TrainOptions::default() })?;
     let last = rows.last();
     println!(
         "{} {} on {}: steps {}..{} in {:.1} s (total {:.1} s), batch PSNR {:.2} dB{}",

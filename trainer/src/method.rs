@@ -529,7 +529,6 @@ struct Probe {
 struct ProbePass<'a> {
     model: &'a Model,
     data: &'a Dataset,
-    probes: &'a [Option<Probe>],
     /// (view, slot) of every probed pixel, in order.
     pixels: &'a [(usize, usize)],
     view_pixels: &'a [Vec<(u32, u32)>],
@@ -539,13 +538,22 @@ struct ProbePass<'a> {
 }
 
 impl ProbePass<'_> {
-    /// Renders the K first-stage rays of the pixels `range` with the coarse pass only, in
+    /// Renders the K first-stage rays (kernels in `probes`) of the pixels `range` with the
+    /// coarse pass only, in
     /// chunks of at most `chunk_rays` rays (at least one pixel); ray r of the stage draws from
     /// `Rng::new(seed, r)`, so the backward replays the forward's samples. Forward: returns per
     /// pixel K colours then K x features integrated features. Backward (`back`): accumulates
     /// the field's gradients into `g` from the probes' dL/d blurry colour and dL/d features
     /// (render weights held fixed) and returns per point dL/d offset (2), origin shift (3).
-    fn run(&self, p: &[f32], range: Range<usize>, g: &mut [f32], wk: &mut Worker, back: bool) -> Vec<f32> {
+    fn run(
+        &self,
+        p: &[f32],
+        probes: &[Option<Probe>],
+        range: Range<usize>,
+        g: &mut [f32],
+        wk: &mut Worker,
+        back: bool,
+    ) -> Vec<f32> {
         let (k, data) = (self.k, self.data);
         let per = (self.chunk_rays / k).max(1);
         let mut out = Vec::new();
@@ -554,7 +562,7 @@ impl ProbePass<'_> {
             let p1 = (p0 + per).min(range.end);
             let mut world = Vec::with_capacity((p1 - p0) * k);
             for &(v, s) in &self.pixels[p0..p1] {
-                let pr = self.probes[v].as_ref().expect("probed view");
+                let pr = probes[v].as_ref().expect("probed view");
                 let (i, j) = self.view_pixels[v][s];
                 for q in s * k..(s + 1) * k {
                     let (o, t) = (pr.ws.offsets[q].map(f64::from), pr.ws.origins[q].map(f64::from));
@@ -588,7 +596,7 @@ impl ProbePass<'_> {
                 wk.dfeat.clear();
                 wk.dfeat.resize(n * spr * nf, 0.0);
                 for (b, &(v, s)) in self.pixels[p0..p1].iter().enumerate() {
-                    let pr = self.probes[v].as_ref().expect("probed view");
+                    let pr = probes[v].as_ref().expect("probed view");
                     for q in 0..k {
                         let (r, pq) = (b * k + q, s * k + q);
                         wk.dc[r] = pr.d_blur[s].map(|x| x * pr.ws.weights[pq]);
@@ -735,19 +743,21 @@ pub fn step(
             probe_pixels.extend((0..pixels.len()).map(|s| (v, s)));
             probes[v] = Some(Probe { ws, ..Probe::default() });
         }
-        let pass = ProbePass {
-            model,
-            data,
-            probes: &probes,
-            pixels: &probe_pixels,
-            view_pixels: &view_pixels,
-            k,
-            chunk_rays,
-            seed: probe_seed,
-        };
-        let p: &[f32] = params;
-        let out =
-            bufs.grads.run(0, probe_pixels.len(), &mut bufs.workers, |range, g, wk| pass.run(p, range, g, wk, false));
+    }
+    let probe_pass = progressive.map(|dsk| ProbePass {
+        model,
+        data,
+        pixels: &probe_pixels,
+        view_pixels: &view_pixels,
+        k: dsk.config.k,
+        chunk_rays,
+        seed: probe_seed,
+    });
+    if let (Some(dsk), Some(pass)) = (progressive, &probe_pass) {
+        let (k, p, pr): (usize, &[f32], &[Option<Probe>]) = (dsk.config.k, params, &probes);
+        let out = bufs
+            .grads
+            .run(0, probe_pixels.len(), &mut bufs.workers, |range, g, wk| pass.run(p, pr, range, g, wk, false));
         let nf = dsk.features;
         let per = k * (3 + nf);
         for (n, x) in out.concat().chunks_exact(per).enumerate() {
@@ -1126,20 +1136,10 @@ pub fn step(
             }
             // PDRF's first stage: its rays' backward (replayed with the same samples), then
             // its kernel's.
-            if progressive.is_some() {
-                let pass = ProbePass {
-                    model,
-                    data,
-                    probes: &probes,
-                    pixels: &probe_pixels,
-                    view_pixels: &view_pixels,
-                    k: k_rays,
-                    chunk_rays,
-                    seed: probe_seed,
-                };
-                let p: &[f32] = params;
+            if let Some(pass) = &probe_pass {
+                let (p, pr): (&[f32], &[Option<Probe>]) = (params, &probes);
                 let out = bufs.grads.run(model.layout.len(), probe_pixels.len(), &mut bufs.workers, |range, g, wk| {
-                    pass.run(p, range, g, wk, true)
+                    pass.run(p, pr, range, g, wk, true)
                 });
                 bufs.grads.sum_into(grads);
                 let out = out.concat();

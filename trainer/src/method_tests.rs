@@ -39,6 +39,17 @@ fn tiny_model() -> ModelConfig {
     }
 }
 
+/// The tiny model with parameters from `seed`, its grid values scaled up so that colours vary
+/// along the rays.
+fn textured_field(seed: u64) -> (Model, Vec<f64>) {
+    let model = Model::new(&tiny_model());
+    let mut params: Vec<f64> = model.init(seed).iter().map(|&p| p as f64).collect();
+    for p in &mut params[model.volumes[0].planes[0]..model.volumes[0].basis.w] {
+        *p *= 30.0;
+    }
+    (model, params)
+}
+
 const K: Intrinsics = Intrinsics { width: 40, height: 30, focal: 50.0 };
 
 /// The NDC chunk of world rays.
@@ -168,11 +179,7 @@ fn blur_kernel_chain_matches_finite_differences() {
 fn dsk_ray_chain_matches_finite_differences() {
     // Pixel offsets and camera-frame origin shifts of K = 3 kernel points -> world rays -> NDC
     // -> renderer -> blurry colour -> loss, against dsk_ray_backward after the renderer.
-    let model = Model::new(&tiny_model());
-    let mut params: Vec<f64> = model.init(4).iter().map(|&p| p as f64).collect();
-    for p in &mut params[model.volumes[0].planes[0]..model.volumes[0].basis.w] {
-        *p *= 30.0;
-    }
+    let (model, params) = textured_field(4);
     let pose = Pose {
         rotation: DQuat::from_rotation_y(0.1) * DQuat::from_rotation_x(-0.05),
         position: DVec3::new(0.05, -0.1, 0.2),
@@ -241,11 +248,7 @@ fn pdrf_first_stage_chain_matches_finite_differences() {
     // term standing for the second-stage kernel's use of them), against the renderer's
     // backward with d_features from ray_features_backward, then dsk_ray_backward. The render
     // weights of the integration are held fixed on both sides (as in the method).
-    let model = Model::new(&tiny_model());
-    let mut params: Vec<f64> = model.init(6).iter().map(|&p| p as f64).collect();
-    for p in &mut params[model.volumes[0].planes[0]..model.volumes[0].basis.w] {
-        *p *= 30.0;
-    }
+    let (model, params) = textured_field(6);
     let pose = Pose {
         rotation: DQuat::from_rotation_y(-0.08) * DQuat::from_rotation_x(0.04),
         position: DVec3::new(-0.05, 0.1, 0.15),

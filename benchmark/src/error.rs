@@ -30,6 +30,14 @@ pub enum BenchError {
     /// Loading a dataset, training or evaluating failed.
     #[error(transparent)]
     Train(#[from] trainer::error::TrainError),
+    /// A figure could not be drawn (no drawable point, a bad value, a drawing failure).
+    #[error("figure \"{title}\": {message}")]
+    Plot {
+        /// The figure's title.
+        title: String,
+        /// What is wrong and the fix.
+        message: String,
+    },
     /// Loading LPIPS weights or scoring an image failed.
     #[error(transparent)]
     Lpips(#[from] crate::lpips::LpipsError),
@@ -44,6 +52,11 @@ impl BenchError {
     /// A problem with a results file or folder.
     pub fn results(path: &Path, message: impl Into<String>) -> BenchError {
         BenchError::Results { path: path.to_owned(), message: message.into() }
+    }
+
+    /// A problem drawing the figure titled `title`.
+    pub fn plot(title: &str, message: impl Into<String>) -> BenchError {
+        BenchError::Plot { title: title.to_owned(), message: message.into() }
     }
 }
 

@@ -7,6 +7,8 @@
 //! - [`metrics`]: a finished cell's `metrics.json`.
 //! - [`table`]: merging finished cells into Table 1 / ablation tables (Markdown, CSV, LaTeX)
 //!   with a manifest.
+//! - [`plot`]: sweep figures (metric vs swept setting, one line per method, PSNR solid on the left
+//!   axis, LPIPS dashed on a right twin axis) as PNG, text from an embedded font.
 //! - [`lpips`]: LPIPS (Zhang et al. 2018, AlexNet, v0.1) from a weights file exported from the
 //!   `lpips` Python package by `scripts/export_lpips_weights.py`.
 //! - [`error`]: the error type, [`BenchError`].
@@ -18,6 +20,7 @@ pub mod error;
 pub mod lpips;
 pub mod matrix;
 pub mod metrics;
+pub mod plot;
 pub mod run;
 pub mod table;
 

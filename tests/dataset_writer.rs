@@ -298,3 +298,57 @@ fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
     let bad = measure(&plan(&toml), &NoiseOptions { factor: 1, ..NoiseOptions::default() }).unwrap_err();
     assert!(bad.to_string().contains("factor"), "{bad}");
 }
+
+#[test]
+fn sweep_overrides_reach_the_plan_and_a_shared_frame_cache_skips_rendering() {
+    let dir = temp_dir("dataset", "sweep");
+    let toml = tiny_scene(&dir);
+    let base = plan(&toml);
+    let over = |o: Overrides| Plan::resolve(&toml, &o);
+
+    // event and exposure settings keep the render key: the frames can be shared
+    let noisy = over(Overrides {
+        exposure_ms: Some(4.0),
+        threshold_sigma: Some(0.03),
+        leak_rate_hz: Some(0.5),
+        shot_noise_rate_hz: Some(2.0),
+        refractory_ms: Some(0.25),
+        ..Overrides::default()
+    })
+    .unwrap();
+    assert_eq!(noisy.render_key, base.render_key);
+    assert_ne!(noisy.settings_hash, base.settings_hash);
+    let n = &noisy.events.noise;
+    assert_eq!(n.threshold_mismatch.map(|m| m.sigma), Some(0.03));
+    assert_eq!((n.leak_rate_hz, n.shot_noise_rate_hz), (0.5, 2.0));
+    assert_eq!(n.refractory.map(|r| r.period_ns), Some(250_000));
+    let off = over(Overrides { threshold_sigma: Some(0.0), refractory_ms: Some(0.0), ..Overrides::default() }).unwrap();
+    assert!(off.events.noise.threshold_mismatch.is_none() && off.events.noise.refractory.is_none());
+
+    // speed re-times the path: half the frames at twice the speed, another render key
+    let fast = over(Overrides { speed: Some(2.0), ..Overrides::default() }).unwrap();
+    assert_ne!(fast.render_key, base.render_key);
+    let span = |p: &Plan| p.trajectory.end_ns() - p.trajectory.start_ns();
+    assert_eq!(span(&fast) * 2, span(&base));
+    let end = |p: &Plan| p.trajectory.pose_at(p.trajectory.end_ns()).unwrap().position;
+    assert!((end(&fast) - end(&base)).length() < 1e-9);
+
+    // a second dataset that differs only in exposure and event noise renders nothing
+    let cache = dir.join("frames");
+    let first = write_dataset(&base, &opts(&dir.join("a"), Some(cache.clone()))).unwrap();
+    assert!(first.frames_rendered > 0 && first.sharp_rendered > 0);
+    let second = write_dataset(&noisy, &opts(&dir.join("b"), Some(cache))).unwrap();
+    assert_eq!((second.frames_rendered, second.sharp_rendered), (0, 0), "{second:?}");
+    assert!(second.frames > 0 && second.events_on + second.events_off > 0);
+
+    for (o, field) in [
+        (Overrides { speed: Some(0.0), ..Overrides::default() }, "speed"),
+        (Overrides { speed: Some(f64::NAN), ..Overrides::default() }, "speed"),
+        (Overrides { refractory_ms: Some(-1.0), ..Overrides::default() }, "refractory_ms"),
+        (Overrides { leak_rate_hz: Some(f32::NAN), ..Overrides::default() }, "leak_rate_hz"),
+        (Overrides { threshold_sigma: Some(-0.1), ..Overrides::default() }, "sigma"),
+    ] {
+        let e = over(o).unwrap_err().to_string();
+        assert!(e.contains(field) && e.contains("scene.toml"), "{e}");
+    }
+}

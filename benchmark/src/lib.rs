@@ -9,6 +9,8 @@
 //!   with a manifest.
 //! - [`plot`]: sweep figures (metric vs swept setting, one line per method, PSNR solid on the left
 //!   axis, LPIPS dashed on a right twin axis) as PNG, text from an embedded font.
+//! - [`sweep`]: sweeps of simulation or training settings (one matrix per point), their
+//!   tables and figures, and data-only sweeps.
 //! - [`lpips`]: LPIPS (Zhang et al. 2018, AlexNet, v0.1) from a weights file exported from the
 //!   `lpips` Python package by `scripts/export_lpips_weights.py`.
 //! - [`error`]: the error type, [`BenchError`].
@@ -22,6 +24,7 @@ pub mod matrix;
 pub mod metrics;
 pub mod plot;
 pub mod run;
+pub mod sweep;
 pub mod table;
 
 pub use error::BenchError;

@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use simulator::dataset::{write_dataset, RunOptions};
+use simulator::dataset::{write_dataset, RunOptions, Summary};
 
 use crate::error::BenchError;
 use crate::matrix::{ScenePlan, SceneSource, Shard};
@@ -18,20 +18,32 @@ pub fn is_complete(dir: &Path) -> bool {
     dir.join("dataset.toml").is_file()
 }
 
-/// The dataset folder of `scene`, simulated first when needed; returns the folder and whether
-/// it was simulated now.
-pub fn ensure(scene: &ScenePlan, results: &Path, shard: Shard) -> Result<(PathBuf, bool), BenchError> {
+/// The dataset folder of `scene`, simulated first when needed (with `frames_cache` as the
+/// simulator's frame cache if given); returns the folder and, if it was simulated now, the
+/// simulator's summary (frames rendered or read from the cache, timings).
+pub fn ensure(
+    scene: &ScenePlan,
+    results: &Path,
+    shard: Shard,
+    frames_cache: Option<&Path>,
+) -> Result<(PathBuf, Option<Summary>), BenchError> {
     let dir = scene.dataset_dir(results);
     let plan = match &scene.source {
-        SceneSource::Folder(_) => return Ok((dir, false)),
-        SceneSource::Simulate(_) if is_complete(&dir) => return Ok((dir, false)),
+        SceneSource::Folder(_) => return Ok((dir, None)),
+        SceneSource::Simulate(_) if is_complete(&dir) => return Ok((dir, None)),
         SceneSource::Simulate(plan) => plan,
     };
     let name = dir.file_name().expect("a hash folder").to_string_lossy().into_owned();
     let part = dir.with_file_name(format!("{name}.part-{}of{}", shard.index, shard.count));
-    write_dataset(plan, &RunOptions { out: part.clone(), progress: false, ..RunOptions::default() })?;
+    let opts = RunOptions {
+        out: part.clone(),
+        frames_cache: frames_cache.map(Path::to_owned),
+        progress: false,
+        ..RunOptions::default()
+    };
+    let summary = write_dataset(plan, &opts)?;
     match std::fs::rename(&part, &dir) {
-        Ok(()) => Ok((dir, true)),
+        Ok(()) => Ok((dir, Some(summary))),
         Err(_) if is_complete(&dir) => {
             std::fs::remove_dir_all(&part).map_err(|e| {
                 BenchError::results(
@@ -39,7 +51,7 @@ pub fn ensure(scene: &ScenePlan, results: &Path, shard: Shard) -> Result<(PathBu
                     format!("cannot remove this duplicate of {} ({e}); delete it", dir.display()),
                 )
             })?;
-            Ok((dir, true))
+            Ok((dir, Some(summary)))
         }
         Err(e) => Err(BenchError::results(
             &part,

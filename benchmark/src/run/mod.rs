@@ -43,6 +43,10 @@ pub struct RunOptions<'a> {
     pub stop: Option<&'a AtomicBool>,
     /// Stop as Ctrl-C would after training this many steps of a cell (tests).
     pub stop_after_steps: Option<u64>,
+    /// A frame cache shared by the simulated datasets (sweeps: datasets that differ only in
+    /// exposure or event settings reuse the rendered frames); `None`: each dataset's own,
+    /// deleted when it is complete.
+    pub frames_cache: Option<PathBuf>,
 }
 
 /// Where a cell stands.
@@ -172,9 +176,9 @@ pub fn run(plan: &MatrixPlan, opts: &RunOptions) -> Result<RunSummary, BenchErro
         if !dataset::is_complete(&scene.dataset_dir(&plan.results)) {
             progress.cell_phase(&format!("{} simulating", scene.name));
         }
-        let data_dir = match dataset::ensure(scene, &plan.results, opts.shard) {
+        let data_dir = match dataset::ensure(scene, &plan.results, opts.shard, opts.frames_cache.as_deref()) {
             Ok((d, simulated)) => {
-                if simulated {
+                if simulated.is_some() {
                     summary.simulated += 1;
                     progress.line(&format!("{}: simulated into {}", scene.name, d.display()));
                 }

@@ -58,7 +58,7 @@ struct Printed {
 
 /// Every row's printed cells: per column group (scenes, then the average), per metric.
 fn printed(table: &Table) -> Vec<Vec<Printed>> {
-    let groups = table.scenes.len() + 1;
+    let groups = group_titles(table).len();
     let mut out: Vec<Vec<Printed>> = table.rows.iter().map(|_| Vec::with_capacity(groups * 3)).collect();
     for g in 0..groups {
         for metric in METRICS {
@@ -85,9 +85,10 @@ fn printed(table: &Table) -> Vec<Vec<Printed>> {
     out
 }
 
-/// The column groups' titles: the scenes, then `Average`.
+/// The column groups' titles: the scenes, then `Average` (if the table has it).
 fn group_titles(table: &Table) -> Vec<String> {
-    table.scenes.iter().cloned().chain(["Average".to_string()]).collect()
+    let average = table.average.then(|| "Average".to_string());
+    table.scenes.iter().cloned().chain(average).collect()
 }
 
 /// The title of the row column.
@@ -130,7 +131,8 @@ pub fn csv(table: &Table) -> String {
         Form::Table1 => vec!["method".into()],
         Form::Ablation => vec!["preset".into(), "switches".into()],
     };
-    let groups: Vec<String> = table.scenes.iter().cloned().chain(["average".to_string()]).collect();
+    let average = table.average.then(|| "average".to_string());
+    let groups: Vec<String> = table.scenes.iter().cloned().chain(average).collect();
     for g in &groups {
         header.extend(METRICS.iter().map(|m| csv_field(&format!("{g}_{}", m.header().2))));
     }

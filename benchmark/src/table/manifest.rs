@@ -107,7 +107,11 @@ pub fn manifest_json(table: &Table, results: &Path) -> String {
 
 /// Writes `<out>/<form>.{md,csv,tex,manifest.json}` atomically; returns their paths.
 pub fn write_all(table: &Table, results: &Path, out: &Path) -> Result<Vec<PathBuf>, BenchError> {
-    let stem = table.form.name();
+    write_named(table, results, out, table.form.name())
+}
+
+/// Writes `<out>/<stem>.{md,csv,tex,manifest.json}` atomically; returns their paths.
+pub fn write_named(table: &Table, results: &Path, out: &Path, stem: &str) -> Result<Vec<PathBuf>, BenchError> {
     let files = [
         (format!("{stem}.md"), format::markdown(table)),
         (format!("{stem}.csv"), format::csv(table)),

@@ -91,6 +91,8 @@ pub struct Table {
     pub scenes: Vec<String>,
     /// The rows, in order.
     pub rows: Vec<Row>,
+    /// Whether the rows' scores end with the average over the scenes (an `Average` group).
+    pub average: bool,
     /// The cells behind it, by key, with their folders relative to the results.
     pub cells: Vec<(PathBuf, CellMetrics)>,
 }
@@ -279,7 +281,7 @@ pub fn build(results: &Path, form: Form, selection: Option<&Selection>) -> Resul
             Row { label, preset, switches, scores }
         })
         .collect();
-    Ok(Table { form, scenes, rows, cells })
+    Ok(Table { form, scenes, rows, average: true, cells })
 }
 
 #[cfg(test)]

@@ -149,7 +149,8 @@ impl Plan {
             .map_err(|e| DatasetError::io(scene_file, "cannot read the scene file", e))?;
         let desc = description::parse(&text, scene_file)?;
         let bad = |field: &str, message: String| DatasetError::config(scene_file, field, message);
-        let trajectory_config = desc.trajectory.clone().ok_or_else(|| {
+        overrides.validate().map_err(|(field, message)| bad(field, message))?;
+        let trajectory_config = desc.trajectory.as_ref().map(|t| overrides.apply_speed(t)).ok_or_else(|| {
             bad(
                 "trajectory",
                 "missing: a dataset needs a camera path; add a [trajectory] table, e.g. type = \"fast_motion\", \

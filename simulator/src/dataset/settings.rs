@@ -19,9 +19,11 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::events::config::{Refractory, ThresholdMismatch};
 use crate::exposure::CameraResponse;
 use crate::render::accel::BvhPreset;
 use crate::render::sampler::SamplerKind;
+use crate::trajectory::TrajectoryConfig;
 
 /// Where a frame's random numbers come from, frame to frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -142,6 +144,17 @@ pub struct Overrides {
     pub clamp: Option<f32>,
     /// `[dataset] light_samples`: light samples per path vertex (count).
     pub light_samples: Option<u32>,
+    /// `[events.noise.threshold_mismatch] sigma`: per-pixel threshold spread (log units; 0 = off).
+    pub threshold_sigma: Option<f32>,
+    /// `[events.noise] leak_rate_hz`: leak events per pixel per second (Hz).
+    pub leak_rate_hz: Option<f32>,
+    /// `[events.noise] shot_noise_rate_hz`: shot-noise events per pixel per second (Hz).
+    pub shot_noise_rate_hz: Option<f32>,
+    /// `[events.noise.refractory]` period (ms; 0 = off).
+    pub refractory_ms: Option<f64>,
+    /// Camera speed factor (> 0): the trajectory's clock runs this much faster (2 = the same
+    /// path in half the time, twice the blur per exposure).
+    pub speed: Option<f64>,
 }
 
 impl Overrides {
@@ -165,6 +178,35 @@ impl Overrides {
             noise_pattern: over.noise_pattern.or(self.noise_pattern),
             clamp: over.clamp.or(self.clamp),
             light_samples: over.light_samples.or(self.light_samples),
+            threshold_sigma: over.threshold_sigma.or(self.threshold_sigma),
+            leak_rate_hz: over.leak_rate_hz.or(self.leak_rate_hz),
+            shot_noise_rate_hz: over.shot_noise_rate_hz.or(self.shot_noise_rate_hz),
+            refractory_ms: over.refractory_ms.or(self.refractory_ms),
+            speed: over.speed.or(self.speed),
+        }
+    }
+
+    /// Reject the values that cannot be applied (NaN, negative, zero speed), naming the field;
+    /// the rest is range-checked with the scene's own settings after [`Overrides::apply`].
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if let Some(ms) = self.refractory_ms {
+            if !(ms >= 0.0 && ms.is_finite()) {
+                return Err(("refractory_ms", format!("{ms} must be a time >= 0 in milliseconds (0 turns it off)")));
+            }
+        }
+        if let Some(s) = self.speed {
+            if !(s > 0.0 && s.is_finite()) {
+                return Err(("speed", format!("{s} must be a positive factor (1 = the scene's own speed)")));
+            }
+        }
+        Ok(())
+    }
+
+    /// The trajectory with its clock scaled by `speed` (unchanged without it).
+    pub fn apply_speed(&self, t: &TrajectoryConfig) -> TrajectoryConfig {
+        match self.speed {
+            Some(s) if s != 1.0 => t.time_scaled(s),
+            _ => t.clone(),
         }
     }
 
@@ -190,5 +232,17 @@ impl Overrides {
         d.noise_pattern = self.noise_pattern.unwrap_or(d.noise_pattern);
         d.clamp = self.clamp.unwrap_or(d.clamp);
         d.light_samples = self.light_samples.unwrap_or(d.light_samples);
+        let noise = &mut ev.noise;
+        if let Some(sigma) = self.threshold_sigma {
+            let mode = noise.threshold_mismatch.map(|m| m.mode).unwrap_or_default();
+            noise.threshold_mismatch = (sigma != 0.0).then_some(ThresholdMismatch { sigma, mode });
+        }
+        noise.leak_rate_hz = self.leak_rate_hz.unwrap_or(noise.leak_rate_hz);
+        noise.shot_noise_rate_hz = self.shot_noise_rate_hz.unwrap_or(noise.shot_noise_rate_hz);
+        if let Some(ms) = self.refractory_ms {
+            let mode = noise.refractory.map(|r| r.mode).unwrap_or_default();
+            let period_ns = (ms * 1e6).round() as i64;
+            noise.refractory = (period_ns > 0).then_some(Refractory { period_ns, mode });
+        }
     }
 }

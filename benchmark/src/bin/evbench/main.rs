@@ -12,6 +12,7 @@ use clap::{Parser, Subcommand};
 
 use benchmark::matrix::{MatrixPlan, SceneSource, Shard};
 use benchmark::run::{self, CellStatus, RunOptions};
+use benchmark::sweep::{self, SweepPlan};
 use benchmark::table::{self, Form, Selection};
 
 #[derive(Parser)]
@@ -50,6 +51,37 @@ enum Cmd {
         #[arg(long)]
         quiet: bool,
     },
+    /// Run a sweep: a matrix plus one or two swept settings (sweep files in
+    /// benchmark/configs/sweeps/); every point's cells run like a matrix's (resumable,
+    /// shardable), then a table and a figure per scene go to RESULTS/sweep/.
+    Sweep {
+        /// The sweep file (a run matrix with a [sweep] table; see benchmark/src/sweep/config.rs).
+        config: PathBuf,
+        /// Simulate and measure the datasets (events, blur, EDI PSNR) without training.
+        #[arg(long)]
+        data_only: bool,
+        /// Only write the tables and figures of the finished cells.
+        #[arg(long, conflicts_with = "data_only")]
+        report: bool,
+        /// Run part i of n of every point (1-based), as for `run`.
+        #[arg(long, value_name = "i/n")]
+        shard: Option<Shard>,
+        /// Results folder (default: the file's `results`, else runs/bench).
+        #[arg(long)]
+        results: Option<PathBuf>,
+        /// LPIPS weights (default: $EVBLUR_LPIPS_WEIGHTS); without them LPIPS is n/a.
+        #[arg(long)]
+        lpips_weights: Option<PathBuf>,
+        /// Worker threads for training and scoring (0: all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
+        /// List the points and their cells' status, run nothing.
+        #[arg(long)]
+        dry_run: bool,
+        /// No progress bars or per-cell lines.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Merge the finished cells under RESULTS (any shards, any machines) into a table as
     /// Markdown, CSV and LaTeX, with a manifest.
     Table {
@@ -76,9 +108,47 @@ fn main() -> Result<()> {
             if dry_run {
                 return list(&plan, shard);
             }
-            let code = run_matrix(&plan, shard, lpips_weights, threads, quiet)?;
+            let stop = ctrl_c()?;
+            let opts = run_options(shard, lpips_weights, threads, quiet, &stop, None);
+            let code = run_matrix(&plan, &opts)?;
             // The table of this matrix's finished cells (all shards' so far).
             write_table(&plan.results, Form::Table1, Some(&Selection::of(&plan)), None)?;
+            std::process::exit(code);
+        }
+        Cmd::Sweep { config, data_only, report, shard, results, lpips_weights, threads, dry_run, quiet } => {
+            let plan = SweepPlan::load(&config, results.as_deref())?;
+            let shard = shard.unwrap_or_default();
+            if dry_run {
+                for (p, point) in plan.points.iter().enumerate() {
+                    println!("point {}: {}", p + 1, point_text(&plan, p));
+                    list(&point.plan, shard)?;
+                }
+                return Ok(());
+            }
+            if data_only {
+                return data_sweep(&plan);
+            }
+            let mut code = 0;
+            if !report {
+                let stop = ctrl_c()?;
+                let frames = plan.results.join(sweep::FRAMES_DIR);
+                let opts = run_options(shard, lpips_weights, threads, quiet, &stop, Some(frames));
+                for (p, point) in plan.points.iter().enumerate() {
+                    if !quiet {
+                        println!("point {} of {}: {}", p + 1, plan.points.len(), point_text(&plan, p));
+                    }
+                    code = code.max(run_matrix(&point.plan, &opts)?);
+                    if code == 130 {
+                        break;
+                    }
+                }
+            }
+            for s in 0..plan.points[0].plan.scenes.len() {
+                print!("{}", table::format::markdown(&sweep::report::scene_table(&plan, s)?));
+            }
+            let files = sweep::report::write(&plan)?;
+            let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+            println!("wrote {}", names.join(", "));
             std::process::exit(code);
         }
         Cmd::Table { results, out, form, config } => {
@@ -131,43 +201,87 @@ fn list(plan: &MatrixPlan, shard: Shard) -> Result<()> {
     Ok(())
 }
 
-/// `run`: the exit code (0 done, 1 a cell failed, 130 stopped by Ctrl-C).
-fn run_matrix(
-    plan: &MatrixPlan,
+/// `point p`'s values, printed.
+fn point_text(plan: &SweepPlan, p: usize) -> String {
+    let point = &plan.points[p];
+    let v: Vec<String> =
+        plan.axes.iter().zip(&point.index).map(|(a, &i)| format!("{} = {}", a.name, a.values[i].text)).collect();
+    v.join(", ")
+}
+
+/// `sweep --data-only`: simulate and measure every point's datasets, print and write the table.
+fn data_sweep(plan: &SweepPlan) -> Result<()> {
+    let start = Instant::now();
+    let stats = sweep::data::run(plan, |d| {
+        println!(
+            "{} {}: {:.3e} events/s, {:.1} events/px, blur {:.2} px (max {:.2}), blurry {} dB, EDI {} dB; {} frames rendered, simulated in {:.1} s, measured in {:.1} s",
+            d.point,
+            d.scene,
+            d.events_per_second,
+            d.events_per_pixel,
+            d.blur_mean_px,
+            d.blur_max_px,
+            d.blurry_psnr.map_or("n/a".into(), |v| format!("{v:.2}")),
+            d.edi_psnr.map_or("n/a".into(), |v| format!("{v:.2}")),
+            d.frames_rendered,
+            d.simulate_seconds,
+            d.stats_seconds
+        )
+    })?;
+    print!("{}", sweep::data::markdown(&stats));
+    let files = sweep::data::write(plan, &stats)?;
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    println!("{} datasets in {:.1} s; wrote {}", stats.len(), start.elapsed().as_secs_f64(), names.join(", "));
+    Ok(())
+}
+
+/// Installs the Ctrl-C handler: the first press sets the flag, the second quits.
+fn ctrl_c() -> Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+        eprintln!(
+            "\nstopping after this training step with a checkpoint (or once the dataset being simulated is \
+             written); Ctrl-C again to quit now (rendered frames are kept)"
+        );
+    })
+    .context("cannot install the Ctrl-C handler")?;
+    Ok(stop)
+}
+
+/// The run options of `run` and `sweep`.
+fn run_options(
     shard: Shard,
     lpips_weights: Option<PathBuf>,
     threads: usize,
     quiet: bool,
-) -> Result<i32> {
-    let start = Instant::now();
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || {
-            if stop.swap(true, Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-            eprintln!(
-                "\nstopping after this training step with a checkpoint (or once the dataset being simulated is \
-                 written); Ctrl-C again to quit now (rendered frames are kept)"
-            );
-        })
-        .context("cannot install the Ctrl-C handler")?;
-    }
+    stop: &AtomicBool,
+    frames_cache: Option<PathBuf>,
+) -> RunOptions<'_> {
     let lpips_weights = benchmark::lpips::weights_path(lpips_weights.as_deref());
     if lpips_weights.is_none() && !quiet {
         println!("no LPIPS weights (--lpips-weights or ${}): LPIPS will be n/a", benchmark::lpips::WEIGHTS_ENV);
     }
-    let opts = RunOptions {
+    RunOptions {
         shard,
         lpips_weights,
         threads,
         bars: std::io::stderr().is_terminal(),
         quiet,
-        stop: Some(&stop),
+        stop: Some(stop),
         stop_after_steps: None,
-    };
-    let s = run::run(plan, &opts)?;
+        frames_cache,
+    }
+}
+
+/// `run`: the exit code (0 done, 1 a cell failed, 130 stopped by Ctrl-C).
+fn run_matrix(plan: &MatrixPlan, opts: &RunOptions) -> Result<i32> {
+    let start = Instant::now();
+    let shard = opts.shard;
+    let s = run::run(plan, opts)?;
     println!(
         "shard {shard}: {} cells: {} already done, {} trained, {} resumed, {} scored only, {} failed; {} datasets simulated; {:.1} s",
         s.cells,

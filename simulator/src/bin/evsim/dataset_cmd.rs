@@ -71,6 +71,21 @@ pub struct OverrideArgs {
     /// Override [dataset] light_samples: light samples per path vertex.
     #[arg(long)]
     pub light_samples: Option<u32>,
+    /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
+    #[arg(long)]
+    pub threshold_sigma: Option<f32>,
+    /// Override [events.noise] leak_rate_hz: leak events per pixel per second.
+    #[arg(long)]
+    pub leak_rate_hz: Option<f32>,
+    /// Override [events.noise] shot_noise_rate_hz: shot-noise events per pixel per second.
+    #[arg(long)]
+    pub shot_noise_rate_hz: Option<f32>,
+    /// Override [events.noise.refractory]: refractory period in ms (0 = off).
+    #[arg(long)]
+    pub refractory_ms: Option<f64>,
+    /// Camera speed factor: the trajectory's clock runs this much faster (2 = twice the blur).
+    #[arg(long)]
+    pub speed: Option<f64>,
 }
 
 impl OverrideArgs {
@@ -89,6 +104,11 @@ impl OverrideArgs {
             noise_pattern: self.noise_pattern,
             clamp: self.clamp,
             light_samples: self.light_samples,
+            threshold_sigma: self.threshold_sigma,
+            leak_rate_hz: self.leak_rate_hz,
+            shot_noise_rate_hz: self.shot_noise_rate_hz,
+            refractory_ms: self.refractory_ms,
+            speed: self.speed,
         }
     }
 }

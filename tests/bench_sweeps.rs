@@ -186,3 +186,32 @@ fn bad_sweep_files_name_the_axis_and_the_fix() {
     check("[sweep]\naxes = []\n", &["sweep.axes", "one or two"]);
     check("[sweep]\ncolour = 1\naxes = []\n", &["sweep", "colour"]);
 }
+
+#[test]
+fn shipped_sweeps_resolve_at_both_scales() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../benchmark/configs/sweeps");
+    let mut seen = Vec::new();
+    for sub in ["", "paper"] {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir.join(sub))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+            .collect();
+        files.sort();
+        for f in &files {
+            let plan = SweepPlan::load(f, Some(Path::new("/nonexistent-results"))).unwrap_or_else(|e| panic!("{e}"));
+            let scale = plan.points[0].plan.scale;
+            assert_eq!(format!("{scale:?}").to_lowercase(), if sub.is_empty() { "cpu" } else { "paper" }, "{f:?}");
+            let cells: usize = plan.points.iter().map(|p| p.plan.cells.len()).sum();
+            assert!(cells >= 8, "{f:?}: {cells} cells");
+            seen.push((sub, f.file_name().unwrap().to_string_lossy().into_owned(), cells));
+        }
+    }
+    // every study in both versions, with the same cells
+    let names = |s: &str| seen.iter().filter(|x| x.0 == s).map(|x| (x.1.clone(), x.2)).collect::<Vec<_>>();
+    assert_eq!(names(""), names("paper"));
+    let studies: Vec<String> = names("").into_iter().map(|x| x.0).collect();
+    for want in ["exposure", "threshold", "mismatch", "noise", "refractory", "speed", "views"] {
+        assert!(studies.contains(&format!("{want}.toml")), "{studies:?}");
+    }
+}

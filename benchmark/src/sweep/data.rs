@@ -66,9 +66,8 @@ pub struct DataStats {
 pub fn run(plan: &SweepPlan, mut on_point: impl FnMut(&DataStats)) -> Result<Vec<DataStats>, BenchError> {
     let frames = plan.results.join(super::FRAMES_DIR);
     let mut out = Vec::new();
-    for point in &plan.points {
-        let text: Vec<String> =
-            plan.axes.iter().zip(&point.index).map(|(a, &i)| format!("{} = {}", a.name, a.values[i].text)).collect();
+    for (p, point) in plan.points.iter().enumerate() {
+        let text = plan.point_text(p);
         for scene in &point.plan.scenes {
             let SceneSource::Simulate(sim) = &scene.source else {
                 return Err(BenchError::config(
@@ -82,7 +81,7 @@ pub fn run(plan: &SweepPlan, mut on_point: impl FnMut(&DataStats)) -> Result<Vec
             let simulate_seconds = start.elapsed().as_secs_f64();
             let start = Instant::now();
             let mut stats = measure(sim, &dir, &plan.results)?;
-            stats.point = text.join(", ");
+            stats.point = text.clone();
             stats.x = plan.axes[0].values[point.index[0]].x;
             stats.scene = scene.name.clone();
             stats.frames_rendered = summary.as_ref().map_or(0, |s| s.frames_rendered + s.sharp_rendered);
@@ -144,6 +143,28 @@ fn measure(sim: &simulator::dataset::Plan, dir: &Path, results: &Path) -> Result
         simulate_seconds: 0.0,
         stats_seconds: 0.0,
     })
+}
+
+impl std::fmt::Display for DataStats {
+    /// One line: the point, the scene and every statistic, with the simulation's cost.
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(
+            f,
+            "{} {}: {:.3e} events/s, {:.1} events/px, blur {:.2} px (max {:.2}), blurry {} dB, EDI {} dB; \
+             {} frames rendered, simulated in {:.1} s, measured in {:.1} s",
+            self.point,
+            self.scene,
+            self.events_per_second,
+            self.events_per_pixel,
+            self.blur_mean_px,
+            self.blur_max_px,
+            opt(self.blurry_psnr),
+            opt(self.edi_psnr),
+            self.frames_rendered,
+            self.simulate_seconds,
+            self.stats_seconds
+        )
+    }
 }
 
 fn opt(v: Option<f64>) -> String {

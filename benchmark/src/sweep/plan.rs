@@ -149,6 +149,16 @@ impl SweepPlan {
     }
 }
 
+impl SweepPlan {
+    /// Point `p`'s values, printed (`dataset.exposure_ms = 5, train.events.threshold = [0.3, 0.3]`).
+    pub fn point_text(&self, p: usize) -> String {
+        let point = &self.points[p];
+        let v: Vec<String> =
+            self.axes.iter().zip(&point.index).map(|(a, &i)| format!("{} = {}", a.name, a.values[i].text)).collect();
+        v.join(", ")
+    }
+}
+
 fn resolve_axis(a: &AxisSpec) -> Result<Axis, String> {
     let setting = match a.setting.split_once('.') {
         Some(("dataset", f)) if !f.is_empty() => Setting::Dataset(f.to_string()),

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 
 use benchmark::matrix::{MatrixPlan, SceneSource, Shard};
 use benchmark::run::{self, CellStatus, RunOptions};
@@ -30,26 +30,8 @@ enum Cmd {
     Run {
         /// The run-matrix file (TOML; fields in benchmark/src/matrix/config.rs).
         config: PathBuf,
-        /// Run part i of n (1-based): the cells at positions p with p % n == i - 1 in key
-        /// order, the same split on every machine.
-        #[arg(long, value_name = "i/n")]
-        shard: Option<Shard>,
-        /// Results folder (default: the file's `results`, else runs/bench).
-        #[arg(long)]
-        results: Option<PathBuf>,
-        /// LPIPS weights (default: $EVBLUR_LPIPS_WEIGHTS); without them LPIPS is n/a.
-        #[arg(long)]
-        lpips_weights: Option<PathBuf>,
-        /// Worker threads for training and scoring (0: all cores). A cell resumes bit for bit
-        /// only with the thread count it started with.
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// List the shard's cells and their status, run nothing.
-        #[arg(long)]
-        dry_run: bool,
-        /// No progress bars or per-cell lines (the final summary is still printed).
-        #[arg(long)]
-        quiet: bool,
+        #[command(flatten)]
+        run: RunArgs,
     },
     /// Run a sweep: a matrix plus one or two swept settings (sweep files in
     /// benchmark/configs/sweeps/); every point's cells run like a matrix's (resumable,
@@ -63,24 +45,8 @@ enum Cmd {
         /// Only write the tables and figures of the finished cells.
         #[arg(long, conflicts_with = "data_only")]
         report: bool,
-        /// Run part i of n of every point (1-based), as for `run`.
-        #[arg(long, value_name = "i/n")]
-        shard: Option<Shard>,
-        /// Results folder (default: the file's `results`, else runs/bench).
-        #[arg(long)]
-        results: Option<PathBuf>,
-        /// LPIPS weights (default: $EVBLUR_LPIPS_WEIGHTS); without them LPIPS is n/a.
-        #[arg(long)]
-        lpips_weights: Option<PathBuf>,
-        /// Worker threads for training and scoring (0: all cores).
-        #[arg(long, default_value_t = 0)]
-        threads: usize,
-        /// List the points and their cells' status, run nothing.
-        #[arg(long)]
-        dry_run: bool,
-        /// No progress bars or per-cell lines.
-        #[arg(long)]
-        quiet: bool,
+        #[command(flatten)]
+        run: RunArgs,
     },
     /// Merge the finished cells under RESULTS (any shards, any machines) into a table as
     /// Markdown, CSV and LaTeX, with a manifest.
@@ -99,28 +65,53 @@ enum Cmd {
     },
 }
 
+/// The options `run` and `sweep` share.
+#[derive(Args)]
+struct RunArgs {
+    /// Run part i of n (1-based; of every point, for a sweep): the cells at positions p with
+    /// p % n == i - 1 in key order, the same split on every machine.
+    #[arg(long, value_name = "i/n")]
+    shard: Option<Shard>,
+    /// Results folder (default: the file's `results`, else runs/bench).
+    #[arg(long)]
+    results: Option<PathBuf>,
+    /// LPIPS weights (default: $EVBLUR_LPIPS_WEIGHTS); without them LPIPS is n/a.
+    #[arg(long)]
+    lpips_weights: Option<PathBuf>,
+    /// Worker threads for training and scoring (0: all cores). A cell resumes bit for bit
+    /// only with the thread count it started with.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// List the cells and their status, run nothing.
+    #[arg(long)]
+    dry_run: bool,
+    /// No progress bars or per-cell lines (the final summary is still printed).
+    #[arg(long)]
+    quiet: bool,
+}
+
 fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::Run { config, shard, results, lpips_weights, threads, dry_run, quiet } => {
-            let plan = MatrixPlan::load(&config, results.as_deref())?;
-            let shard = shard.unwrap_or_default();
-            if dry_run {
+        Cmd::Run { config, run } => {
+            let plan = MatrixPlan::load(&config, run.results.as_deref())?;
+            let shard = run.shard.unwrap_or_default();
+            if run.dry_run {
                 return list(&plan, shard);
             }
             let stop = ctrl_c()?;
-            let opts = run_options(shard, lpips_weights, threads, quiet, &stop, None);
+            let opts = run_options(&run, &stop, None);
             let code = run_matrix(&plan, &opts)?;
             // The table of this matrix's finished cells (all shards' so far).
             write_table(&plan.results, Form::Table1, Some(&Selection::of(&plan)), None)?;
             std::process::exit(code);
         }
-        Cmd::Sweep { config, data_only, report, shard, results, lpips_weights, threads, dry_run, quiet } => {
-            let plan = SweepPlan::load(&config, results.as_deref())?;
-            let shard = shard.unwrap_or_default();
-            if dry_run {
+        Cmd::Sweep { config, data_only, report, run } => {
+            let plan = SweepPlan::load(&config, run.results.as_deref())?;
+            let shard = run.shard.unwrap_or_default();
+            if run.dry_run {
                 for (p, point) in plan.points.iter().enumerate() {
-                    println!("point {}: {}", p + 1, point_text(&plan, p));
+                    println!("point {}: {}", p + 1, plan.point_text(p));
                     list(&point.plan, shard)?;
                 }
                 return Ok(());
@@ -132,10 +123,10 @@ fn main() -> Result<()> {
             if !report {
                 let stop = ctrl_c()?;
                 let frames = plan.results.join(sweep::FRAMES_DIR);
-                let opts = run_options(shard, lpips_weights, threads, quiet, &stop, Some(frames));
+                let opts = run_options(&run, &stop, Some(frames));
                 for (p, point) in plan.points.iter().enumerate() {
-                    if !quiet {
-                        println!("point {} of {}: {}", p + 1, plan.points.len(), point_text(&plan, p));
+                    if !run.quiet {
+                        println!("point {} of {}: {}", p + 1, plan.points.len(), plan.point_text(p));
                     }
                     code = code.max(run_matrix(&point.plan, &opts)?);
                     if code == 130 {
@@ -201,33 +192,10 @@ fn list(plan: &MatrixPlan, shard: Shard) -> Result<()> {
     Ok(())
 }
 
-/// `point p`'s values, printed.
-fn point_text(plan: &SweepPlan, p: usize) -> String {
-    let point = &plan.points[p];
-    let v: Vec<String> =
-        plan.axes.iter().zip(&point.index).map(|(a, &i)| format!("{} = {}", a.name, a.values[i].text)).collect();
-    v.join(", ")
-}
-
 /// `sweep --data-only`: simulate and measure every point's datasets, print and write the table.
 fn data_sweep(plan: &SweepPlan) -> Result<()> {
     let start = Instant::now();
-    let stats = sweep::data::run(plan, |d| {
-        println!(
-            "{} {}: {:.3e} events/s, {:.1} events/px, blur {:.2} px (max {:.2}), blurry {} dB, EDI {} dB; {} frames rendered, simulated in {:.1} s, measured in {:.1} s",
-            d.point,
-            d.scene,
-            d.events_per_second,
-            d.events_per_pixel,
-            d.blur_mean_px,
-            d.blur_max_px,
-            d.blurry_psnr.map_or("n/a".into(), |v| format!("{v:.2}")),
-            d.edi_psnr.map_or("n/a".into(), |v| format!("{v:.2}")),
-            d.frames_rendered,
-            d.simulate_seconds,
-            d.stats_seconds
-        )
-    })?;
+    let stats = sweep::data::run(plan, |d| println!("{d}"))?;
     print!("{}", sweep::data::markdown(&stats));
     let files = sweep::data::write(plan, &stats)?;
     let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
@@ -253,24 +221,17 @@ fn ctrl_c() -> Result<Arc<AtomicBool>> {
 }
 
 /// The run options of `run` and `sweep`.
-fn run_options(
-    shard: Shard,
-    lpips_weights: Option<PathBuf>,
-    threads: usize,
-    quiet: bool,
-    stop: &AtomicBool,
-    frames_cache: Option<PathBuf>,
-) -> RunOptions<'_> {
-    let lpips_weights = benchmark::lpips::weights_path(lpips_weights.as_deref());
-    if lpips_weights.is_none() && !quiet {
+fn run_options<'a>(run: &RunArgs, stop: &'a AtomicBool, frames_cache: Option<PathBuf>) -> RunOptions<'a> {
+    let lpips_weights = benchmark::lpips::weights_path(run.lpips_weights.as_deref());
+    if lpips_weights.is_none() && !run.quiet {
         println!("no LPIPS weights (--lpips-weights or ${}): LPIPS will be n/a", benchmark::lpips::WEIGHTS_ENV);
     }
     RunOptions {
-        shard,
+        shard: run.shard.unwrap_or_default(),
         lpips_weights,
-        threads,
+        threads: run.threads,
         bars: std::io::stderr().is_terminal(),
-        quiet,
+        quiet: run.quiet,
         stop: Some(stop),
         stop_after_steps: None,
         frames_cache,

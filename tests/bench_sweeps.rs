@@ -90,10 +90,10 @@ values = [[0.2, 0.2], [0.3, 0.3]]
     assert_eq!(
         labels,
         [
-            "e-nerf (train.events.threshold = [0.2, 0.2])",
-            "e2nerf (train.events.threshold = [0.2, 0.2])",
-            "e-nerf (train.events.threshold = [0.3, 0.3])",
-            "e2nerf (train.events.threshold = [0.3, 0.3])"
+            "e-nerf, train.events.threshold = [0.2, 0.2]",
+            "e2nerf, train.events.threshold = [0.2, 0.2]",
+            "e-nerf, train.events.threshold = [0.3, 0.3]",
+            "e2nerf, train.events.threshold = [0.3, 0.3]"
         ]
     );
     assert!(table.rows.iter().all(|r| r.scores.len() == 2 && r.scores.iter().all(|s| s.is_some_and(|s| s.psnr > 5.0))));

@@ -355,11 +355,12 @@ fn draw_legend(
     const ROW: i32 = 32;
     const SAMPLE: i32 = 40;
     let text = text.pos(Pos::new(HPos::Left, VPos::Center));
+    let room = area.dim_in_pixel().0 as i32 - SAMPLE - 18;
     let mut y = 30;
     for (label, colour) in &plan.legend {
         area.draw(&PathElement::new([(4, y), (4 + SAMPLE, y)], colour.stroke_width(LINE_PX)))?;
         area.draw(&Circle::new((4 + SAMPLE / 2, y), MARKER_PX, colour.filled()))?;
-        area.draw_text(label, &text, (SAMPLE + 14, y))?;
+        area.draw_text(&fit(area, label, &text, room)?, &text, (SAMPLE + 14, y))?;
         y += ROW;
     }
     y += ROW / 2;
@@ -374,10 +375,26 @@ fn draw_legend(
             area.draw(&PathElement::new([(4 + SAMPLE - DASH_PX, y), (4 + SAMPLE, y)], style))?;
             area.draw(&TriangleMarker::new(middle, MARKER_PX + 1, BLACK.filled()))?;
         }
-        area.draw_text(label, &text, (SAMPLE + 14, y))?;
+        area.draw_text(&fit(area, label, &text, room)?, &text, (SAMPLE + 14, y))?;
         y += ROW;
     }
     Ok(())
+}
+
+/// `label`, shortened with a trailing ellipsis until it is at most `room` pixels wide.
+fn fit(
+    area: &DrawingArea<BitMapBackend, Shift>,
+    label: &str,
+    text: &TextStyle,
+    room: i32,
+) -> Result<String, Box<dyn std::error::Error>> {
+    let mut out = label.to_string();
+    let mut chars: Vec<char> = label.chars().collect();
+    while area.estimate_text_size(&out, text)?.0 as i32 > room && !chars.is_empty() {
+        chars.pop();
+        out = chars.iter().collect::<String>() + "…";
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

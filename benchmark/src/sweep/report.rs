@@ -27,7 +27,7 @@ pub fn scene_table(plan: &SweepPlan, scene: usize) -> Result<Table, BenchError> 
     for j in 0..lines1 {
         for (m, method) in base.methods.iter().enumerate() {
             let label = match plan.axes.get(1) {
-                Some(a) => format!("{} ({} = {})", method.name, a.label, a.values[j].text),
+                Some(a) => format!("{}, {} = {}", method.name, a.label, a.values[j].text),
                 None => method.name.clone(),
             };
             let mut scores = Vec::with_capacity(axis0.values.len());
@@ -73,12 +73,19 @@ fn mean(found: &[CellMetrics]) -> Option<Scores> {
 pub fn figure(plan: &SweepPlan, scene_name: &str, table: &Table) -> Option<Figure> {
     let axis0 = &plan.axes[0];
     let xs: Vec<f64> = axis0.values.iter().map(|v| v.x).collect();
+    // Legend labels: the method, and the second axis's value (its name goes into the title).
+    let methods = &plan.points[0].plan.methods;
+    let label = |r: usize| match plan.axes.get(1) {
+        Some(a) => format!("{}, {}", methods[r % methods.len()].name, a.values[r / methods.len()].text),
+        None => methods[r % methods.len()].name.clone(),
+    };
     let series = |f: &dyn Fn(&Scores) -> Option<f64>| -> Vec<Series> {
         table
             .rows
             .iter()
-            .map(|r| Series {
-                label: r.label.clone(),
+            .enumerate()
+            .map(|(i, r)| Series {
+                label: label(i),
                 points: xs
                     .iter()
                     .zip(&r.scores)
@@ -98,7 +105,10 @@ pub fn figure(plan: &SweepPlan, scene_name: &str, table: &Table) -> Option<Figur
         ("SSIM (dashed; LPIPS: no weights)".to_string(), series(&|s| Some(s.ssim)))
     };
     Some(Figure {
-        title: format!("{}: {scene_name}", plan.title),
+        title: match plan.axes.get(1) {
+            Some(a) => format!("{}: {scene_name}; lines: method, {}", plan.title, a.label),
+            None => format!("{}: {scene_name}", plan.title),
+        },
         x_label: axis0.label.clone(),
         left_label: "PSNR (dB, solid)".into(),
         left,

@@ -112,7 +112,7 @@ fn shards_merge_into_the_unsharded_table_and_a_stopped_cell_resumes() {
     // Shard 2/2, stopped after 5 steps of its first cell (a checkpoint is written).
     let s = run(&b, Shard { index: 2, count: 2 }, Some(5));
     assert!(s.interrupted && s.trained == 0 && s.simulated == 1, "{s:?}");
-    let second: Vec<_> = run::shard_cells(&b, Shard { index: 2, count: 2 });
+    let second: Vec<_> = run::shard_cells(&b, Shard { index: 2, count: 2 }, 0);
     let partial: Vec<_> =
         second.iter().filter(|c| run::status(&b, c).unwrap() == CellStatus::Partial { step: 5 }).collect();
     assert_eq!(partial.len(), 1);

@@ -142,7 +142,7 @@ values = [0.2, 0.4]
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("| dataset.threshold = 0.4 | tiny |"), "{stdout}");
 
-    let csv = std::fs::read_to_string(results.join("sweep/threshold-data.csv")).unwrap();
+    let csv = std::fs::read_to_string(results.join("sweep/threshold.data.csv")).unwrap();
     let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.rsplit(',').collect::<Vec<_>>()).collect();
     assert_eq!(rows.len(), 2, "{csv}");
     // fields from the end: edi_psnr, blurry_psnr, blur max, blur mean, events/px, events/s, events
@@ -153,7 +153,7 @@ values = [0.2, 0.4]
         assert!(edi > 10.0 && blurry > 10.0, "{r:?}");
     }
     assert!(stdout.contains("0 frames rendered"), "the second point reuses the frames: {stdout}");
-    assert!(results.join("sweep/threshold-data.png").is_file());
+    assert!(results.join("sweep/threshold.data.png").is_file());
 
     // the library's view: the same numbers again, nothing simulated now
     let plan = SweepPlan::load(&file, Some(&results)).unwrap();
@@ -184,6 +184,17 @@ fn bad_sweep_files_name_the_axis_and_the_fix() {
     check(&axis("dataset.speed", "[0]"), &["speed", "positive"]);
     check(&axis("train.bogus.key", "[1]"), &["bogus", "nerf"]);
     check("[sweep]\naxes = []\n", &["sweep.axes", "one or two"]);
+    check(&axis("train.seed", "[1, 2]"), &["train.seed", "seeds"]);
+    check(&axis("train.iterations", "[0]"), &["iterations", "positive integer"]);
+    // a method's own `set` of the swept key wins: every point would repeat one cell
+    let file = sweep_file(&dir, "noop", &[], "");
+    let text = std::fs::read_to_string(&file).unwrap().replace(
+        "[[scenes]]",
+        "[[methods]]\npreset = \"nerf\"\nname = \"fixed\"\nset = [\"batch_rays=64\"]\n[[scenes]]",
+    ) + &axis("train.batch_rays", "[128, 256]");
+    std::fs::write(&file, text).unwrap();
+    let e = SweepPlan::load(&file, None).unwrap_err().to_string();
+    assert!(e.contains("sweep.axes") && e.contains("fixed") && e.contains("batch_rays = 128"), "{e}");
     check("[sweep]\ncolour = 1\naxes = []\n", &["sweep", "colour"]);
 }
 
@@ -214,4 +225,34 @@ fn shipped_sweeps_resolve_at_both_scales() {
     for want in ["exposure", "threshold", "mismatch", "noise", "refractory", "speed", "views"] {
         assert!(studies.contains(&format!("{want}.toml")), "{studies:?}");
     }
+}
+
+#[test]
+fn a_sweeps_shards_split_all_its_points_and_iterations_can_be_swept() {
+    let dir = temp_dir("sweep", "shards");
+    let file = sweep_file(
+        &dir,
+        "its",
+        &["nerf"],
+        "[sweep]\n[[sweep.axes]]\nsetting = \"train.iterations\"\nvalues = [4, 6, 8]\n",
+    );
+    let plan = SweepPlan::load(&file, Some(&dir.join("results"))).unwrap();
+    let its: Vec<u64> = plan.points.iter().map(|p| p.plan.cells[0].config.iterations).collect();
+    assert_eq!(its, [4, 6, 8], "the axis wins over the matrix's iterations");
+    // one cell per point: numbered across the sweep, two shards take 2 and 1 of the 3
+    let count = |index| {
+        let shard = benchmark::matrix::Shard { index, count: 2 };
+        let mut first = 0;
+        let mut n = 0;
+        for p in &plan.points {
+            n += run::shard_cells(&p.plan, shard, first).len();
+            first += p.plan.cells.len();
+        }
+        n
+    };
+    assert_eq!((count(1), count(2)), (2, 1));
+
+    // a data-only sweep needs a dataset axis
+    let e = sweep::data::run(&plan, |_| {}).unwrap_err().to_string();
+    assert!(e.contains("its.toml") && e.contains("dataset.*"), "{e}");
 }

@@ -150,13 +150,9 @@ pub fn resolve(cfg: &mut TrainConfig, data: &Dataset) {
     let Some(ev) = cfg.events.as_mut() else { return };
     let model = event_model(data);
     let model = model.as_ref();
-    let num =
-        |key: &str| model.and_then(|m| m.get(key)).and_then(|v| v.as_float().or(v.as_integer().map(|i| i as f64)));
+    let num = |key: &str| model_number(model, key);
     if ev.threshold.is_none() {
-        ev.threshold = Some(match (num("c_pos"), num("c_neg")) {
-            (Some(on), Some(off)) => [on, off],
-            _ => [0.2, 0.2],
-        });
+        ev.threshold = Some(dataset_thresholds(data).unwrap_or([0.2, 0.2]));
     }
     if ev.log_eps.is_none() {
         ev.log_eps = Some(num("log_eps").unwrap_or(1e-5));
@@ -164,6 +160,21 @@ pub fn resolve(cfg: &mut TrainConfig, data: &Dataset) {
     if ev.luma.is_none() {
         let sensor = model.and_then(|m| m.get("sensor")).and_then(|s| s.as_str());
         ev.luma = Some(if sensor == Some("mono") { REC709 } else { BT601 });
+    }
+}
+
+/// A number of the `[event_model]` table (an integer reads as a float).
+fn model_number(model: Option<&toml::Value>, key: &str) -> Option<f64> {
+    model.and_then(|m| m.get(key)).and_then(|v| v.as_float().or(v.as_integer().map(|i| i as f64)))
+}
+
+/// The thresholds `[c_pos, c_neg]` the dataset's events were simulated with (its
+/// `dataset.toml`), if it records them.
+pub fn dataset_thresholds(data: &Dataset) -> Option<[f64; 2]> {
+    let model = event_model(data);
+    match (model_number(model.as_ref(), "c_pos"), model_number(model.as_ref(), "c_neg")) {
+        (Some(on), Some(off)) => Some([on, off]),
+        _ => None,
     }
 }
 
@@ -290,15 +301,9 @@ impl StepData {
 }
 
 /// The training thresholds (resolved, else the dataset's, else 0.2).
-fn event_thresholds(cfg: &TrainConfig, data: &Dataset) -> [f64; 2] {
-    match cfg.events.as_ref().and_then(|e| e.threshold) {
-        Some(t) => t,
-        None => {
-            let mut c = cfg.clone();
-            resolve(&mut c, data);
-            c.events.and_then(|e| e.threshold).unwrap_or([0.2, 0.2])
-        }
-    }
+pub(crate) fn event_thresholds(cfg: &TrainConfig, data: &Dataset) -> [f64; 2] {
+    // the training threshold if the configuration has events, else (edi-nerf) the dataset's own
+    cfg.events.as_ref().and_then(|e| e.threshold).or_else(|| dataset_thresholds(data)).unwrap_or([0.2, 0.2])
 }
 
 #[derive(Clone, Copy, Debug)]

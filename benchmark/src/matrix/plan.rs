@@ -22,6 +22,12 @@ use crate::error::BenchError;
 pub const DEFAULT_RESULTS: &str = "runs/bench";
 /// Folder under the results that holds simulated datasets (a reserved scene name).
 pub const DATASETS_DIR: &str = "datasets";
+/// Folder under the results that holds a sweep's shared frame cache.
+pub const FRAMES_DIR: &str = "frames";
+/// Folder under the results that holds a sweep's tables and figures.
+pub const SWEEP_DIR: &str = "sweep";
+/// Folders under the results that are not scenes (reserved scene names).
+pub const RESERVED_DIRS: [&str; 3] = [DATASETS_DIR, FRAMES_DIR, SWEEP_DIR];
 
 /// A resolved run matrix.
 #[derive(Debug)]
@@ -260,10 +266,10 @@ fn resolve_scenes(file: &Path, base: &Path, cfg: &MatrixConfig) -> Result<Vec<Sc
             return Err(bad(field, format!("{} does not exist; paths are relative to this file", path.display())));
         }
         let name = s.name.clone().unwrap_or_else(|| default_scene_name(&path));
-        if !valid_name(&name) || name == DATASETS_DIR {
+        if !valid_name(&name) || RESERVED_DIRS.contains(&name.as_str()) {
             return Err(bad(
                 format!("scenes[{i}].name"),
-                format!("`{name}`: {NAME_RULE}; `{DATASETS_DIR}` is reserved (set name = ...)"),
+                format!("`{name}`: {NAME_RULE}; {} are reserved (set name = ...)", RESERVED_DIRS.join(", ")),
             ));
         }
         if let Some(j) = out.iter().position(|o| o.name == name) {

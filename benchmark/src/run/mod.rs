@@ -47,6 +47,9 @@ pub struct RunOptions<'a> {
     /// exposure or event settings reuse the rendered frames); `None`: each dataset's own,
     /// deleted when it is complete.
     pub frames_cache: Option<PathBuf>,
+    /// The position of the matrix's first cell in a larger numbering (a sweep numbers the cells
+    /// of all its points one after the other, so that its shards split the whole sweep).
+    pub first_position: usize,
 }
 
 /// Where a cell stands.
@@ -79,9 +82,10 @@ pub fn status(plan: &MatrixPlan, cell: &Cell) -> Result<CellStatus, BenchError> 
     Ok(step.map_or(CellStatus::Todo, |step| CellStatus::Partial { step }))
 }
 
-/// The cells of `shard`, in key order.
-pub fn shard_cells(plan: &MatrixPlan, shard: Shard) -> Vec<&Cell> {
-    plan.cells.iter().enumerate().filter(|(p, _)| shard.contains(*p)).map(|(_, c)| c).collect()
+/// The cells of `shard`, in key order; the first cell is at position `first` (0 for a matrix
+/// of its own).
+pub fn shard_cells(plan: &MatrixPlan, shard: Shard, first: usize) -> Vec<&Cell> {
+    plan.cells.iter().enumerate().filter(|(p, _)| shard.contains(first + *p)).map(|(_, c)| c).collect()
 }
 
 /// What a run did.
@@ -112,7 +116,7 @@ pub fn run(plan: &MatrixPlan, opts: &RunOptions) -> Result<RunSummary, BenchErro
     let pool = rayon::ThreadPoolBuilder::new().num_threads(opts.threads).build().map_err(|e| {
         BenchError::results(&plan.results, format!("cannot start {} worker threads ({e})", opts.threads))
     })?;
-    let mut cells = shard_cells(plan, opts.shard);
+    let mut cells = shard_cells(plan, opts.shard, opts.first_position);
     cells.sort_by_key(|c| (c.scene, c.method, c.seed));
     let mut summary = RunSummary { cells: cells.len(), ..RunSummary::default() };
 

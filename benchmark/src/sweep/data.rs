@@ -9,17 +9,18 @@
 //!   event double integral, 8 bins, the dataset's thresholds and response) against the sharp
 //!   frames.
 //!
-//! Written to `<results>/sweep/<stem>-data.{md,csv,png}`.
+//! Written to `<results>/sweep/<stem>.data.{md,csv,png}` (a `.`: a scene may be named `data`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use simulator::dataset::blur::blur_stats;
+use simulator::exposure::CameraResponse;
 use simulator::render::accel::Accel;
 use trainer::data::{Dataset, LoadOptions};
 
 use super::plan::SweepPlan;
-use super::report::SWEEP_DIR;
+use super::SWEEP_DIR;
 use crate::error::BenchError;
 use crate::matrix::{SceneSource, Shard};
 use crate::plot::{self, Figure, Series};
@@ -35,6 +36,8 @@ pub struct DataStats {
     pub point: String,
     /// The value of the first axis (the plot's x).
     pub x: f64,
+    /// The point's value index per axis.
+    pub index: Vec<usize>,
     /// The scene.
     pub scene: String,
     /// The dataset folder.
@@ -64,6 +67,14 @@ pub struct DataStats {
 /// Simulates every point's datasets (as needed) and measures them, in point order; `on_point`
 /// sees each result as it comes.
 pub fn run(plan: &SweepPlan, mut on_point: impl FnMut(&DataStats)) -> Result<Vec<DataStats>, BenchError> {
+    if !plan.axes.iter().any(|a| matches!(a.setting, super::plan::Setting::Dataset(_))) {
+        return Err(BenchError::config(
+            &plan.file,
+            "sweep.axes",
+            "no axis is a dataset.* setting, so every point has the same dataset; --data-only measures \
+             datasets (run the sweep without it to train)",
+        ));
+    }
     let frames = plan.results.join(super::FRAMES_DIR);
     let mut out = Vec::new();
     for (p, point) in plan.points.iter().enumerate() {
@@ -83,6 +94,7 @@ pub fn run(plan: &SweepPlan, mut on_point: impl FnMut(&DataStats)) -> Result<Vec
             let mut stats = measure(sim, &dir, &plan.results)?;
             stats.point = text.clone();
             stats.x = plan.axes[0].values[point.index[0]].x;
+            stats.index = point.index.clone();
             stats.scene = scene.name.clone();
             stats.frames_rendered = summary.as_ref().map_or(0, |s| s.frames_rendered + s.sharp_rendered);
             stats.simulate_seconds = if summary.is_some() { simulate_seconds } else { 0.0 };
@@ -104,17 +116,18 @@ fn measure(sim: &simulator::dataset::Plan, dir: &Path, results: &Path) -> Result
     let m: toml::Table = toml::from_str(&text).map_err(|e| {
         BenchError::results(&manifest, format!("{}; delete the dataset folder to re-simulate it", e.message()))
     })?;
-    let int = |t: &toml::Table, k: &str| t.get(k).and_then(toml::Value::as_integer);
-    let num = |t: &toml::Table, k: &str| t.get(k).and_then(|v| v.as_float().or(v.as_integer().map(|i| i as f64)));
-    let (Some(events), Some(frames), Some(period)) = (int(&m, "events"), int(&m, "frames"), int(&m, "frame_period_ns"))
-    else {
+    let int = |k: &str| m.get(k).and_then(toml::Value::as_integer);
+    let (Some(events), Some(frames), Some(period)) = (int("events"), int("frames"), int("frame_period_ns")) else {
         return Err(BenchError::results(&manifest, "lacks events, frames or frame_period_ns; re-simulate the dataset"));
     };
-    let model = m.get("event_model").and_then(toml::Value::as_table);
-    let thresholds =
-        (model.and_then(|t| num(t, "c_pos")).unwrap_or(0.2), model.and_then(|t| num(t, "c_neg")).unwrap_or(0.2));
-    let response = m.get("dataset").and_then(|d| d.get("response")).and_then(toml::Value::as_table);
-    let gamma = response.and_then(|r| num(r, "gamma")).unwrap_or(2.2);
+    // the settings the dataset was simulated with (its plan)
+    let thresholds = (sim.events.c_pos as f64, sim.events.c_neg as f64);
+    let gamma = match sim.config.response {
+        CameraResponse::Gamma { gamma } => Some(gamma as f64),
+        CameraResponse::Linear => Some(1.0),
+        // the EDI inverts a power law; an sRGB dataset gets no EDI score rather than a wrong one
+        CameraResponse::Srgb => None,
+    };
     let pixels = (sim.config.width as f64) * (sim.config.height as f64);
     let seconds = frames as f64 * period as f64 * 1e-9;
 
@@ -125,11 +138,17 @@ fn measure(sim: &simulator::dataset::Plan, dir: &Path, results: &Path) -> Result
     let train = data.split.train.clone();
     let hash = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let cache = results.join(SWEEP_DIR).join("edi").join(hash);
-    let edi = trainer::events::edi::precompute(&data, &train, EDI_BINS, thresholds, gamma, &cache)?;
-    let score = trainer::events::edi::psnr_vs_sharp(&data, &train, &edi);
+    let score = match gamma {
+        Some(gamma) => {
+            let edi = trainer::events::edi::precompute(&data, &train, EDI_BINS, thresholds, gamma, &cache)?;
+            trainer::events::edi::psnr_vs_sharp(&data, &train, &edi)
+        }
+        None => None,
+    };
     Ok(DataStats {
         point: String::new(),
         x: 0.0,
+        index: Vec::new(),
         scene: String::new(),
         dir: dir.to_owned(),
         events: events as u64,
@@ -221,7 +240,10 @@ pub fn csv(stats: &[DataStats]) -> String {
 /// EDI and blurry PSNR (solid) and events per pixel (dashed) vs the first axis, per scene (and
 /// value of the second axis).
 pub fn figure(plan: &SweepPlan, stats: &[DataStats]) -> Figure {
-    let second = |d: &DataStats| d.point.split_once(", ").map(|(_, b)| format!(" ({b})")).unwrap_or_default();
+    let second = |d: &DataStats| match (plan.axes.get(1), d.index.get(1)) {
+        (Some(a), Some(&j)) => format!(" ({})", a.values[j].text),
+        _ => String::new(),
+    };
     let mut left: Vec<Series> = Vec::new();
     let mut right: Vec<Series> = Vec::new();
     let push = |set: &mut Vec<Series>, label: String, p: (f64, f64)| match set.iter_mut().find(|s| s.label == label) {
@@ -246,7 +268,7 @@ pub fn figure(plan: &SweepPlan, stats: &[DataStats]) -> Figure {
     }
 }
 
-/// Writes `<results>/sweep/<stem>-data.{md,csv,png}`; returns the files.
+/// Writes `<results>/sweep/<stem>.data.{md,csv,png}`; returns the files.
 pub fn write(plan: &SweepPlan, stats: &[DataStats]) -> Result<Vec<PathBuf>, BenchError> {
     let out = plan.results.join(SWEEP_DIR);
     std::fs::create_dir_all(&out)
@@ -254,12 +276,12 @@ pub fn write(plan: &SweepPlan, stats: &[DataStats]) -> Result<Vec<PathBuf>, Benc
     let stem = plan.file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "sweep".into());
     let mut written = Vec::new();
     for (ext, text) in [("md", markdown(stats)), ("csv", csv(stats))] {
-        let path = out.join(format!("{stem}-data.{ext}"));
+        let path = out.join(format!("{stem}.data.{ext}"));
         simulator::image_io::write_atomic(&path, text.as_bytes())
             .map_err(|e| BenchError::results(&path, format!("{e:#}")))?;
         written.push(path);
     }
-    let png = out.join(format!("{stem}-data.png"));
+    let png = out.join(format!("{stem}.data.png"));
     plot::write_png(&figure(plan, stats), &png)?;
     written.push(png);
     Ok(written)

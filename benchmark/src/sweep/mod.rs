@@ -13,7 +13,5 @@ pub mod data;
 pub mod plan;
 pub mod report;
 
+pub use crate::matrix::plan::{FRAMES_DIR, SWEEP_DIR};
 pub use plan::SweepPlan;
-
-/// The folder under the results that holds the shared frame cache.
-pub const FRAMES_DIR: &str = "frames";

@@ -140,10 +140,31 @@ impl SweepPlan {
                 points.push(Point { index, plan });
             }
         }
-        let title = spec
-            .title
-            .clone()
-            .unwrap_or_else(|| file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default());
+        // Every value must change something: a point whose cells are another point's cells
+        // (an override that the matrix or a method overrides again) would repeat one result.
+        let mut seen: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+        for (p, point) in points.iter().enumerate() {
+            for cell in &point.plan.cells {
+                if let Some(&q) = seen.get(cell.key.as_str()) {
+                    let method = &point.plan.methods[cell.method].name;
+                    return Err(bad(
+                        "sweep.axes".into(),
+                        format!(
+                            "`{}` and `{}` give method `{method}` the same configuration (cell {}): the swept \
+                             setting does not reach it (a method's own `set` of the same key wins); sweep \
+                             another setting or drop that method's override",
+                            point_text(&axes, &points[q].index),
+                            point_text(&axes, &point.index),
+                            cell.key
+                        ),
+                    ));
+                }
+                seen.insert(&cell.key, p);
+            }
+        }
+        let title = spec.title.clone().unwrap_or_else(|| {
+            file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "sweep".into())
+        });
         let results = points[0].plan.results.clone();
         Ok(SweepPlan { file: file.to_owned(), title, axes, points, results })
     }
@@ -152,16 +173,21 @@ impl SweepPlan {
 impl SweepPlan {
     /// Point `p`'s values, printed (`dataset.exposure_ms = 5, train.events.threshold = [0.3, 0.3]`).
     pub fn point_text(&self, p: usize) -> String {
-        let point = &self.points[p];
-        let v: Vec<String> =
-            self.axes.iter().zip(&point.index).map(|(a, &i)| format!("{} = {}", a.name, a.values[i].text)).collect();
-        v.join(", ")
+        point_text(&self.axes, &self.points[p].index)
     }
+}
+
+fn point_text(axes: &[Axis], index: &[usize]) -> String {
+    let v: Vec<String> = axes.iter().zip(index).map(|(a, &i)| format!("{} = {}", a.name, a.values[i].text)).collect();
+    v.join(", ")
 }
 
 fn resolve_axis(a: &AxisSpec) -> Result<Axis, String> {
     let setting = match a.setting.split_once('.') {
         Some(("dataset", f)) if !f.is_empty() => Setting::Dataset(f.to_string()),
+        Some(("train", "seed")) => {
+            return Err("setting `train.seed`: the matrix's `seeds` list gives the seeds; list them there".into())
+        }
         Some(("train", k)) if !k.is_empty() => Setting::Train(k.to_string()),
         _ => {
             return Err(format!(
@@ -216,6 +242,11 @@ fn apply(cfg: &mut MatrixConfig, setting: &Setting, value: &toml::Value) -> Resu
                 s.dataset = s.dataset.merged(&o);
             }
         }
+        // the matrix's own `iterations` would be applied after `set`: sweep that instead
+        Setting::Train(key) if key == "iterations" => match value.as_integer() {
+            Some(n) if n > 0 => cfg.iterations = Some(n as u64),
+            _ => return Err(format!("iterations must be a positive integer, not {value}")),
+        },
         Setting::Train(key) => cfg.set.push(format!("{key}={value}")),
     }
     Ok(())

@@ -9,13 +9,11 @@
 use std::path::{Path, PathBuf};
 
 use super::plan::SweepPlan;
+use super::SWEEP_DIR;
 use crate::error::BenchError;
 use crate::metrics::{self, CellMetrics};
 use crate::plot::{self, Figure, Series};
 use crate::table::{manifest, Form, Row, Scores, Table};
-
-/// The folder under the results that holds the sweep's tables and figures.
-pub const SWEEP_DIR: &str = "sweep";
 
 /// The table of one scene.
 pub fn scene_table(plan: &SweepPlan, scene: usize) -> Result<Table, BenchError> {

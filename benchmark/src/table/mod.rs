@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use crate::error::BenchError;
-use crate::matrix::plan::DATASETS_DIR;
+use crate::matrix::plan::RESERVED_DIRS;
 use crate::metrics::{self, CellMetrics};
 
 /// Which table.
@@ -118,7 +118,7 @@ fn walk(root: &Path, dir: &Path, out: &mut Vec<(PathBuf, CellMetrics)>) -> Resul
     entries.sort();
     for path in entries {
         let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        if name.starts_with('.') || (dir == root && name == DATASETS_DIR) {
+        if name.starts_with('.') || (dir == root && RESERVED_DIRS.contains(&name.as_str())) {
             continue;
         }
         if path.is_dir() {

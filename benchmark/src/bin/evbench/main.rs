@@ -97,7 +97,7 @@ fn main() -> Result<()> {
             let plan = MatrixPlan::load(&config, run.results.as_deref())?;
             let shard = run.shard.unwrap_or_default();
             if run.dry_run {
-                return list(&plan, shard);
+                return list(&plan, shard, 0);
             }
             let stop = ctrl_c()?;
             let opts = run_options(&run, &stop, None);
@@ -110,9 +110,11 @@ fn main() -> Result<()> {
             let plan = SweepPlan::load(&config, run.results.as_deref())?;
             let shard = run.shard.unwrap_or_default();
             if run.dry_run {
+                let mut first = 0;
                 for (p, point) in plan.points.iter().enumerate() {
                     println!("point {}: {}", p + 1, plan.point_text(p));
-                    list(&point.plan, shard)?;
+                    list(&point.plan, shard, first)?;
+                    first += point.plan.cells.len();
                 }
                 return Ok(());
             }
@@ -123,12 +125,13 @@ fn main() -> Result<()> {
             if !report {
                 let stop = ctrl_c()?;
                 let frames = plan.results.join(sweep::FRAMES_DIR);
-                let opts = run_options(&run, &stop, Some(frames));
+                let mut opts = run_options(&run, &stop, Some(frames));
                 for (p, point) in plan.points.iter().enumerate() {
                     if !run.quiet {
                         println!("point {} of {}: {}", p + 1, plan.points.len(), plan.point_text(p));
                     }
                     code = code.max(run_matrix(&point.plan, &opts)?);
+                    opts.first_position += point.plan.cells.len();
                     if code == 130 {
                         break;
                     }
@@ -163,9 +166,9 @@ fn write_table(results: &Path, form: Form, selection: Option<&Selection>, out: O
     Ok(())
 }
 
-/// `run --dry-run`: the shard's cells with their status.
-fn list(plan: &MatrixPlan, shard: Shard) -> Result<()> {
-    let cells = run::shard_cells(plan, shard);
+/// `run --dry-run`: the shard's cells with their status (the first cell at position `first`).
+fn list(plan: &MatrixPlan, shard: Shard, first: usize) -> Result<()> {
+    let cells = run::shard_cells(plan, shard, first);
     println!("{}: {} cells, {} in shard {shard}", plan.file.display(), plan.cells.len(), cells.len());
     for scene in &plan.scenes {
         let dir = scene.dataset_dir(&plan.results);
@@ -235,6 +238,7 @@ fn run_options<'a>(run: &RunArgs, stop: &'a AtomicBool, frames_cache: Option<Pat
         stop: Some(stop),
         stop_after_steps: None,
         frames_cache,
+        first_position: 0,
     }
 }
 

@@ -258,7 +258,10 @@ pub fn figure(plan: &SweepPlan, stats: &[DataStats]) -> Figure {
     }
     let axis0 = &plan.axes[0];
     Figure {
-        title: format!("{}: data", plan.title),
+        title: match plan.axes.get(1) {
+            Some(a) => format!("{}: data; (value) = {}", plan.title, a.label),
+            None => format!("{}: data", plan.title),
+        },
         x_label: axis0.label.clone(),
         left_label: "PSNR vs sharp (dB, solid)".into(),
         left,

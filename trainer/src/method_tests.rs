@@ -222,13 +222,16 @@ fn dsk_ray_chain_matches_finite_differences() {
     }
 }
 
+/// A loss as a function of the kernel points' offsets and origin shifts.
+type KernelLoss<'a> = dyn FnMut(&[[f64; 2]; 3], &[[f64; 3]; 3]) -> f64 + 'a;
+
 /// Central differences of `loss_at` in every kernel point's offset (2) and origin shift (3)
 /// against the analytic `(d_offset, d_origin)` of each point.
 fn check_kernel_inputs(
     offsets: &[[f64; 2]; 3],
     origins: &[[f64; 3]; 3],
     analytic: &[([f64; 2], [f64; 3])],
-    loss_at: &mut dyn FnMut(&[[f64; 2]; 3], &[[f64; 3]; 3]) -> f64,
+    loss_at: &mut KernelLoss,
 ) {
     let h = 1e-6;
     for (q, (d_off, d_org)) in analytic.iter().enumerate() {

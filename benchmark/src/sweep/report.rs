@@ -102,10 +102,12 @@ pub fn figure(plan: &SweepPlan, scene_name: &str, table: &Table) -> Option<Figur
     } else {
         ("SSIM (dashed; LPIPS: no weights)".to_string(), series(&|s| Some(s.ssim)))
     };
+    // the scene goes into the title unless the sweep's title already names it
+    let head = if plan.title.contains(scene_name) { plan.title.clone() } else { format!("{}: {scene_name}", plan.title) };
     Some(Figure {
         title: match plan.axes.get(1) {
-            Some(a) => format!("{}: {scene_name}; lines: method, {}", plan.title, a.label),
-            None => format!("{}: {scene_name}", plan.title),
+            Some(a) => format!("{head}; lines: method, {}", a.label),
+            None => head,
         },
         x_label: axis0.label.clone(),
         left_label: "PSNR (dB, solid)".into(),

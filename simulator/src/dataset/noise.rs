@@ -22,10 +22,10 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::cache::round_to_f16;
 use super::plan::Plan;
-use super::settings::NoisePattern;
+use super::writer::render_settings;
 use super::DatasetError;
 use crate::events::{EventSimulator, VecSink};
-use crate::render::film::RenderSettings;
+use crate::render::denoise::{denoise, DenoiseParams};
 use crate::render::integrator::Renderer;
 
 /// What to measure.
@@ -52,6 +52,38 @@ impl Default for NoiseOptions {
     }
 }
 
+/// Event counts of one sequence compared with another's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Comparison {
+    /// Events of the tested sequence.
+    pub test_events: u64,
+    /// Events of the reference.
+    pub ref_events: u64,
+    /// Test events the reference does not have.
+    pub excess: u64,
+    /// Reference events the test does not have.
+    pub missing: u64,
+}
+
+impl Comparison {
+    /// `excess / test_events` (0 when there are no events).
+    pub fn noise_fraction(&self) -> f64 {
+        self.excess as f64 / self.test_events.max(1) as f64
+    }
+    /// `missing / ref_events` (0 when there are no events).
+    pub fn missed_fraction(&self) -> f64 {
+        self.missing as f64 / self.ref_events.max(1) as f64
+    }
+
+    fn of(test: &Counted, reference: &Counted) -> Comparison {
+        let excess =
+            test.bins.iter().map(|(k, &n)| n.saturating_sub(*reference.bins.get(k).unwrap_or(&0)) as u64).sum();
+        let missing =
+            reference.bins.iter().map(|(k, &n)| n.saturating_sub(*test.bins.get(k).unwrap_or(&0)) as u64).sum();
+        Comparison { test_events: test.total, ref_events: reference.total, excess, missing }
+    }
+}
+
 /// The measurement.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NoiseReport {
@@ -65,35 +97,34 @@ pub struct NoiseReport {
     pub spp: u32,
     /// Samples per pixel of the reference.
     pub ref_spp: u32,
-    /// Events of the test sequence.
-    pub test_events: u64,
-    /// Events of the reference.
-    pub ref_events: u64,
-    /// Test events the reference does not have.
-    pub excess: u64,
-    /// Reference events the test does not have.
-    pub missing: u64,
-    /// Wall time rendering the test sequence.
+    /// Whether the dataset's frames are denoised (`[dataset] denoise`).
+    pub denoised: bool,
+    /// The dataset's frames at `spp` against the same pipeline at `ref_spp`: the noise measure.
+    pub pipeline: Comparison,
+    /// With denoising on: the denoised frames at `spp` against *unfiltered* frames at `ref_spp`
+    /// (what the filter changes besides noise shows up here, next to the reference's own noise).
+    pub vs_unfiltered: Option<Comparison>,
+    /// With denoising on: unfiltered frames at `spp` against unfiltered frames at `ref_spp`
+    /// (the measure without the filter, from the same renders).
+    pub unfiltered: Option<Comparison>,
+    /// Wall time rendering the test sequence (and filtering it).
     pub test_time: Duration,
-    /// Wall time rendering the reference.
+    /// Wall time rendering the reference (and filtering it).
     pub ref_time: Duration,
-}
-
-impl NoiseReport {
-    /// `excess / test_events` (0 when there are no events).
-    pub fn noise_fraction(&self) -> f64 {
-        self.excess as f64 / self.test_events.max(1) as f64
-    }
-    /// `missing / ref_events` (0 when there are no events).
-    pub fn missed_fraction(&self) -> f64 {
-        self.missing as f64 / self.ref_events.max(1) as f64
-    }
 }
 
 /// Event counts per (pixel block, polarity is ON, window).
 type BinCounts = std::collections::HashMap<(u32, bool, i64), u32>;
 
-/// Per-(pixel, polarity, window) event counts of a sequence rendered at `spp`.
+/// The binned events of one sequence.
+#[derive(Default)]
+struct Counted {
+    bins: BinCounts,
+    total: u64,
+}
+
+/// Binned events of a sequence rendered at `spp`: `[as the dataset renders it, unfiltered]`
+/// (the second only when the dataset denoises; both from the same renders).
 fn event_counts(
     plan: &Plan,
     renderer: &Renderer,
@@ -101,39 +132,41 @@ fn event_counts(
     spp: u32,
     opts: &NoiseOptions,
     pb: &ProgressBar,
-) -> Result<(BinCounts, u64), DatasetError> {
+) -> Result<Vec<Counted>, DatasetError> {
     let c = &plan.config;
-    let mut sim = EventSimulator::new(plan.events.clone(), c.width, c.height)
+    let variants = if c.denoise { 2 } else { 1 };
+    let mut sims = (0..variants)
+        .map(|_| EventSimulator::new(plan.events.clone(), c.width, c.height))
+        .collect::<Result<Vec<_>, _>>()
         .map_err(|e| DatasetError::config(&plan.scene_file, "events", e.to_string()))?;
     let t_start = plan.clock.time_ns(frames.start);
-    let mut counts = std::collections::HashMap::new();
-    let mut total = 0u64;
+    let mut out: Vec<Counted> = (0..variants).map(|_| Counted::default()).collect();
     for k in frames {
         let t_ns = plan.clock.time_ns(k);
         let pose = plan.trajectory.pose_at(t_ns).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
-        let mut s = RenderSettings::new(pose.camera(plan.yfov as f32));
-        (s.width, s.height, s.spp, s.max_depth, s.seed, s.sampler) =
-            (c.width, c.height, spp, c.max_depth, c.seed, c.sampler);
-        s.clamp = c.clamp;
-        s.light_samples = c.light_samples;
-        s.frame = match c.noise_pattern {
-            NoisePattern::Fixed => 0,
-            NoisePattern::PerFrame => k as u64,
+        let mut s = render_settings(plan, &pose, k, false);
+        s.spp = spp;
+        let images = if c.denoise {
+            let (raw, features) = renderer.render_with_features(&s);
+            vec![denoise(&raw, &features, &DenoiseParams::default()), raw]
+        } else {
+            vec![renderer.render(&s, None)]
         };
-        let mut img = renderer.render(&s, None);
-        round_to_f16(&mut img);
-        img.pixels.iter_mut().for_each(|p| *p *= c.gain);
-        let mut sink = VecSink::default();
-        sim.step(&img, t_ns, &mut sink).map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
-        for e in &sink.events {
-            let (bx, by) = (e.x as u32 / opts.pool, e.y as u32 / opts.pool);
-            let key = (by * c.width + bx, e.p > 0, (e.t_ns - t_start) / opts.window_ns.unwrap_or(i64::MAX));
-            *counts.entry(key).or_insert(0) += 1;
-            total += 1;
+        for ((mut img, sim), counted) in images.into_iter().zip(&mut sims).zip(&mut out) {
+            round_to_f16(&mut img);
+            img.pixels.iter_mut().for_each(|p| *p *= c.gain);
+            let mut sink = VecSink::default();
+            sim.step(&img, t_ns, &mut sink).map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
+            for e in &sink.events {
+                let (bx, by) = (e.x as u32 / opts.pool, e.y as u32 / opts.pool);
+                let key = (by * c.width + bx, e.p > 0, (e.t_ns - t_start) / opts.window_ns.unwrap_or(i64::MAX));
+                *counted.bins.entry(key).or_insert(0) += 1;
+                counted.total += 1;
+            }
         }
         pb.inc(spp as u64);
     }
-    Ok((counts, total))
+    Ok(out)
 }
 
 /// Measure the noise-induced events of `plan`'s settings on a segment (see the module docs).
@@ -166,25 +199,23 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
     let range = start..start + frames;
     pb.set_message("test");
     let t = Instant::now();
-    let (test, test_events) = event_counts(plan, &renderer, range.clone(), c.spp, opts, &pb)?;
+    let test = event_counts(plan, &renderer, range.clone(), c.spp, opts, &pb)?;
     let test_time = t.elapsed();
     pb.set_message("reference");
     let t = Instant::now();
-    let (reference, ref_events) = event_counts(plan, &renderer, range, ref_spp, opts, &pb)?;
+    let reference = event_counts(plan, &renderer, range, ref_spp, opts, &pb)?;
     let ref_time = t.elapsed();
     pb.finish_and_clear();
-    let excess = test.iter().map(|(k, &n)| n.saturating_sub(*reference.get(k).unwrap_or(&0)) as u64).sum();
-    let missing = reference.iter().map(|(k, &n)| n.saturating_sub(*test.get(k).unwrap_or(&0)) as u64).sum();
     Ok(NoiseReport {
         frames,
         width: c.width,
         height: c.height,
         spp: c.spp,
         ref_spp,
-        test_events,
-        ref_events,
-        excess,
-        missing,
+        denoised: c.denoise,
+        pipeline: Comparison::of(&test[0], &reference[0]),
+        vs_unfiltered: c.denoise.then(|| Comparison::of(&test[0], &reference[1])),
+        unfiltered: c.denoise.then(|| Comparison::of(&test[1], &reference[1])),
         test_time,
         ref_time,
     })

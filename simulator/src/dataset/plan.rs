@@ -75,6 +75,9 @@ struct RenderIdentity<'a> {
     sampler: crate::render::sampler::SamplerKind,
     clamp_bits: u32,
     light_samples: u32,
+    /// Only written when on, so that the keys of undenoised frames are those of earlier versions.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    denoise: bool,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -222,6 +225,7 @@ impl Plan {
                 sampler: config.sampler,
                 clamp_bits: config.clamp.to_bits(),
                 light_samples: config.light_samples,
+                denoise: config.denoise,
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })

@@ -54,7 +54,7 @@ pub fn contact_sheet(plan: &Plan, renderer: &Renderer, view: Option<usize>) -> R
         Ok(super::writer::render_settings(plan, &pose, k, sharp))
     };
     for k in first..=last {
-        let mut frame = renderer.render(&settings(k, false)?, None);
+        let mut frame = super::writer::render_frame(renderer, &settings(k, false)?, c.denoise).0;
         super::cache::round_to_f16(&mut frame);
         let t_ns = plan.clock.time_ns(k);
         let mut events = VecSink::default();
@@ -75,7 +75,7 @@ pub fn contact_sheet(plan: &Plan, renderer: &Renderer, view: Option<usize>) -> R
     }
     let blurry = blurry.ok_or_else(|| bad("the exposure did not complete".into()))?;
     let k_mid = plan.clock.frame_at(spec.mid_ns).expect("views lie on frame times");
-    let mut sharp = renderer.render(&settings(k_mid, true)?, None);
+    let mut sharp = super::writer::render_frame(renderer, &settings(k_mid, true)?, c.denoise).0;
     super::cache::round_to_f16(&mut sharp);
 
     // the sheet: three panels and a caption row

@@ -12,6 +12,7 @@
 //! spp = 16                 # samples per pixel of every 1000 FPS frame
 //! sharp_spp = 64           # samples per pixel of the sharp renders (default 4 x spp)
 //! seed = 0                 # renderer seed
+//! denoise = true           # feature-guided denoising of every rendered frame
 //! response = { type = "gamma", gamma = 2.2 }
 //! ```
 //!
@@ -87,6 +88,10 @@ pub struct DatasetConfig {
     /// Light samples per path vertex (>= 1): splitting the direct-light estimate lowers its noise
     /// (sky visibility, the choice among area lights) at the cost of one shadow ray each.
     pub light_samples: u32,
+    /// Filter every rendered frame (sequence frames and sharp renders) with the feature-guided
+    /// À-Trous denoiser ([`crate::render::denoise`]) before anything else sees it: far fewer
+    /// events fired by path-tracing noise at the same spp (see `evsim dataset-noise`).
+    pub denoise: bool,
 }
 
 impl Default for DatasetConfig {
@@ -111,6 +116,7 @@ impl Default for DatasetConfig {
             gain: 1.0,
             clamp: 0.0,
             light_samples: 1,
+            denoise: true,
         }
     }
 }
@@ -144,6 +150,8 @@ pub struct Overrides {
     pub clamp: Option<f32>,
     /// `[dataset] light_samples`: light samples per path vertex (count).
     pub light_samples: Option<u32>,
+    /// `[dataset] denoise`: filter the rendered frames (true/false).
+    pub denoise: Option<bool>,
     /// `[events.noise.threshold_mismatch] sigma`: per-pixel threshold spread (log units; 0 = off).
     pub threshold_sigma: Option<f32>,
     /// `[events.noise] leak_rate_hz`: leak events per pixel per second (Hz).
@@ -178,6 +186,7 @@ impl Overrides {
             noise_pattern: over.noise_pattern.or(self.noise_pattern),
             clamp: over.clamp.or(self.clamp),
             light_samples: over.light_samples.or(self.light_samples),
+            denoise: over.denoise.or(self.denoise),
             threshold_sigma: over.threshold_sigma.or(self.threshold_sigma),
             leak_rate_hz: over.leak_rate_hz.or(self.leak_rate_hz),
             shot_noise_rate_hz: over.shot_noise_rate_hz.or(self.shot_noise_rate_hz),
@@ -232,6 +241,7 @@ impl Overrides {
         d.noise_pattern = self.noise_pattern.unwrap_or(d.noise_pattern);
         d.clamp = self.clamp.unwrap_or(d.clamp);
         d.light_samples = self.light_samples.unwrap_or(d.light_samples);
+        d.denoise = self.denoise.unwrap_or(d.denoise);
         let noise = &mut ev.noise;
         if let Some(sigma) = self.threshold_sigma {
             let mode = noise.threshold_mismatch.map(|m| m.mode).unwrap_or_default();

@@ -72,8 +72,10 @@ pub struct Summary {
     pub events_on: u64,
     /// OFF events written.
     pub events_off: u64,
-    /// Wall time spent rendering frames and sharp views.
+    /// Wall time spent rendering frames and sharp views (denoising included).
     pub render_time: Duration,
+    /// The part of `render_time` spent denoising (`[dataset] denoise`).
+    pub denoise_time: Duration,
     /// Wall time spent reading cached frames.
     pub cache_read_time: Duration,
     /// Wall time of the event model and the event file.
@@ -129,7 +131,23 @@ fn io_stage(path: &Path) -> impl Fn(anyhow::Error) -> DatasetError + '_ {
 }
 
 /// Render settings of frame `k` (or, with `sharp`, of the sharp render at that frame time).
-pub(crate) fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> RenderSettings {
+/// Render one frame of a dataset: the path tracer's image, denoised when `denoise` is on
+/// (`[dataset] denoise`). Every stage that renders (the writer, the preview, the noise
+/// measurement) goes through here, so that they all see the same frames.
+/// Also returns the time spent denoising.
+pub fn render_frame(renderer: &Renderer, settings: &RenderSettings, denoise: bool) -> (Image, Duration) {
+    if denoise {
+        let (img, features) = renderer.render_with_features(settings);
+        let t = Instant::now();
+        let out = crate::render::denoise::denoise(&img, &features, &crate::render::denoise::DenoiseParams::default());
+        (out, t.elapsed())
+    } else {
+        (renderer.render(settings, None), Duration::ZERO)
+    }
+}
+
+/// The render settings of frame `k` of `plan` (a sharp render when `sharp`).
+pub fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> RenderSettings {
     let c = &plan.config;
     let mut s = RenderSettings::new(pose.camera(plan.yfov as f32));
     s.width = c.width;
@@ -229,8 +247,13 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
         let t_ns = plan.clock.time_ns(k);
         let pose = plan.trajectory.pose_at(t_ns).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
         let path = cache.frame_path(c.fps, c.spp, c.noise_pattern, k);
-        let (frame, rendered) =
-            cached_or_rendered(&renderer, &path, &render_settings(plan, &pose, k, false), &mut summary)?;
+        let (frame, rendered) = cached_or_rendered(
+            &renderer,
+            &path,
+            &render_settings(plan, &pose, k, false),
+            plan.config.denoise,
+            &mut summary,
+        )?;
         if rendered {
             summary.frames_rendered += 1;
             count_render(&mut summary)?;
@@ -285,8 +308,13 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     for view in &plan.views {
         let k = plan.clock.frame_at(view.mid_ns).expect("views lie on frame times");
         let path = cache.sharp_path(plan.sharp_spp, view.mid_ns);
-        let (img, rendered) =
-            cached_or_rendered(&renderer, &path, &render_settings(plan, &frame_poses[k], k, true), &mut summary)?;
+        let (img, rendered) = cached_or_rendered(
+            &renderer,
+            &path,
+            &render_settings(plan, &frame_poses[k], k, true),
+            plan.config.denoise,
+            &mut summary,
+        )?;
         if rendered {
             summary.sharp_rendered += 1;
             count_render(&mut summary)?;
@@ -338,6 +366,7 @@ fn cached_or_rendered(
     renderer: &Renderer,
     path: &Path,
     settings: &RenderSettings,
+    plan_denoise: bool,
     summary: &mut Summary,
 ) -> Result<(Image, bool), DatasetError> {
     let t = Instant::now();
@@ -345,7 +374,8 @@ fn cached_or_rendered(
         summary.cache_read_time += t.elapsed();
         return Ok((img, false));
     }
-    let mut img = renderer.render(settings, None);
+    let (mut img, denoise_time) = render_frame(renderer, settings, plan_denoise);
+    summary.denoise_time += denoise_time;
     round_to_f16(&mut img);
     FrameCache::store(path, &img)?;
     summary.render_time += t.elapsed();

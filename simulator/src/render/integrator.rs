@@ -96,24 +96,63 @@ impl<'a> Renderer<'a> {
         img
     }
 
+    /// Render one image and the first-hit feature buffers a denoiser is guided by
+    /// ([`crate::render::denoise`]); the image is the one [`Renderer::render`] returns.
+    pub fn render_with_features(&self, settings: &RenderSettings) -> (Image, Features) {
+        let (w, h) = (settings.width, settings.height);
+        let rows: Vec<Vec<(Vec3, PixelFeatures)>> = (0..h)
+            .into_par_iter()
+            .map(|y| (0..w).map(|x| self.pixel_with_features(settings, x, y)).collect())
+            .collect();
+        let mut img = Image::new(w, h);
+        let mut f = Features::new(w, h);
+        for (i, (c, pf)) in rows.into_iter().flatten().enumerate() {
+            img.pixels[i] = c;
+            f.albedo[i] = pf.albedo;
+            f.normal[i] = pf.normal;
+            f.depth[i] = pf.depth;
+            f.variance[i] = pf.variance;
+        }
+        (img, f)
+    }
+
     /// Mean of `spp` box-filtered samples of pixel (x, y).
     pub fn pixel(&self, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
+        self.pixel_with_features(s, x, y).0
+    }
+
+    /// [`Renderer::pixel`] and the pixel's first-hit features.
+    fn pixel_with_features(&self, s: &RenderSettings, x: u32, y: u32) -> (Vec3, PixelFeatures) {
         let pixel_index = y as u64 * s.width as u64 + x as u64;
         let origin = s.camera.origin();
         let key = pixel_key(s.seed, pixel_index, s.frame);
         let mut sum = Vec3::ZERO;
+        let (mut lum_sum, mut lum_sq) = (0.0f64, 0.0f64);
+        let mut acc = PixelFeatures { albedo: Vec3::ZERO, normal: Vec3::ZERO, depth: 0.0, variance: 0.0 };
         for i in 0..s.spp {
             let mut rng = SampleStream::new(s.sampler, key, i);
             let c = rng.next_4d();
             let film = Vec2::new(x as f32 + c[0], y as f32 + c[1]);
             let dir = s.camera.direction(film, s.width, s.height);
-            let l = self.li(origin, dir, s, &mut rng);
+            let mut first = FirstHit { albedo: Vec3::ONE, normal: -dir, depth: MISS_DEPTH };
+            let l = self.li_first(origin, dir, s, &mut rng, &mut first);
+            acc.albedo += first.albedo;
+            acc.normal += first.normal;
+            acc.depth += first.depth;
             // a non-finite sample would poison the pixel: drop it (counts as black)
             if l.is_finite() {
                 sum += l;
+                let y = luminance(l) as f64;
+                lum_sum += y;
+                lum_sq += y * y;
             }
         }
-        sum / s.spp.max(1) as f32
+        let n = s.spp.max(1) as f32;
+        let mean_lum = lum_sum / n as f64;
+        // variance of the pixel mean: the samples' variance over n
+        let var = ((lum_sq / n as f64 - mean_lum * mean_lum).max(0.0) / n as f64) as f32;
+        let normal = acc.normal.try_normalize().unwrap_or(Vec3::Z);
+        (sum / n, PixelFeatures { albedo: acc.albedo / n, normal, depth: acc.depth / n, variance: var })
     }
 
     /// Interpolated surface data at a hit, with the shading frame facing `-dir`.
@@ -155,6 +194,20 @@ impl<'a> Renderer<'a> {
 
     /// Radiance arriving at `origin` from direction `dir` (one path sample).
     pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
+        let mut first = FirstHit { albedo: Vec3::ONE, normal: -dir, depth: MISS_DEPTH };
+        self.li_first(origin, dir, s, rng, &mut first)
+    }
+
+    /// [`Renderer::li`], also recording the camera ray's hit in `first` (left as it is when the
+    /// ray escapes).
+    fn li_first(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        s: &RenderSettings,
+        rng: &mut SampleStream,
+        first: &mut FirstHit,
+    ) -> Vec3 {
         let scene = self.scene;
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
@@ -181,6 +234,10 @@ impl<'a> Renderer<'a> {
                 break;
             };
             let sh = self.surface(&hit, o, d);
+            if depth == 1 {
+                first.normal = sh.frame.n;
+                first.depth = hit.t;
+            }
 
             // add emission at the hit, MIS-weighted against area-light sampling
             let le = emitted(scene, hit.prim, hit.bary, -d);
@@ -196,6 +253,9 @@ impl<'a> Renderer<'a> {
             }
 
             let bsdf = self.bsdf(hit.prim, sh.uv);
+            if depth == 1 {
+                first.albedo = bsdf.albedo_hint();
+            }
             let wo = sh.frame.to_local(-d);
             // side of the geometric normal the path is on; reflection must stay on it
             let ng_side = if sh.front { sh.ng } else { -sh.ng };
@@ -257,6 +317,66 @@ impl<'a> Renderer<'a> {
         }
         l
     }
+}
+
+/// Depth recorded for camera rays that escape (far beyond any scene; world units).
+pub const MISS_DEPTH: f32 = 1e6;
+
+/// What a camera ray hit first.
+struct FirstHit {
+    /// Reflectance hint of the surface ([`Bsdf::albedo_hint`]); 1 for escaped rays and emitters.
+    albedo: Vec3,
+    /// Shading normal facing the camera; `-dir` for escaped rays.
+    normal: Vec3,
+    /// Distance along the ray ([`MISS_DEPTH`] for escaped rays).
+    depth: f32,
+}
+
+/// One pixel's features: the means over its samples.
+struct PixelFeatures {
+    albedo: Vec3,
+    normal: Vec3,
+    depth: f32,
+    variance: f32,
+}
+
+/// Per-pixel first-hit buffers of one render (row-major like [`Image`]), the guides of
+/// [`crate::render::denoise`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Features {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Mean reflectance hint of the first hits (1 where rays escaped).
+    pub albedo: Vec<Vec3>,
+    /// Normalised mean shading normal of the first hits.
+    pub normal: Vec<Vec3>,
+    /// Mean first-hit distance ([`MISS_DEPTH`] for escaped rays).
+    pub depth: Vec<f32>,
+    /// Variance of the pixel's mean luminance (sample variance over spp).
+    pub variance: Vec<f32>,
+}
+
+impl Features {
+    /// Empty buffers (albedo 1, normal +z, depth 0, variance 0).
+    pub fn new(width: u32, height: u32) -> Features {
+        let n = (width * height) as usize;
+        Features {
+            width,
+            height,
+            albedo: vec![Vec3::ONE; n],
+            normal: vec![Vec3::Z; n],
+            depth: vec![0.0; n],
+            variance: vec![0.0; n],
+        }
+    }
+}
+
+/// Rec.709 luminance of linear RGB.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
 /// Sample clamping (Cycles' "clamp"): a contribution of a path with `segments` segments is

@@ -7,11 +7,13 @@
 //! - [`lights`]: emissive triangles sampled by power, punctual lights, environment.
 //! - [`integrator`]: the unidirectional path tracer with next-event estimation and MIS.
 //! - [`film`]: the image buffer, the tiled parallel render loop and its settings.
+//! - [`denoise`]: the feature-guided À-Trous denoiser applied to dataset frames.
 //! - [`chi2`]: a chi-square goodness-of-fit test for direction samplers (used by the tests).
 
 pub mod accel;
 pub mod bsdf;
 pub mod chi2;
+pub mod denoise;
 pub mod film;
 pub mod integrator;
 pub mod lights;

@@ -407,6 +407,7 @@ fn dataset_bench(b: &DatasetBench) -> Result<()> {
         mb(s.peak_rss[0]),
         mb(s.peak_rss[1])
     );
+    println!("  of which denoising          {:8.1} s  {:9.2}", s.denoise_time.as_secs_f64(), fps(s.denoise_time));
     println!("events                       {:8.1} s  {:9.1}", s.events_time.as_secs_f64(), fps(s.events_time));
     println!("exposure + PNG               {:8.1} s  {:9.1}", s.exposure_time.as_secs_f64(), fps(s.exposure_time));
     println!(

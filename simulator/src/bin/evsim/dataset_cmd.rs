@@ -71,6 +71,9 @@ pub struct OverrideArgs {
     /// Override [dataset] light_samples: light samples per path vertex.
     #[arg(long)]
     pub light_samples: Option<u32>,
+    /// Override [dataset] denoise: filter the rendered frames (true or false).
+    #[arg(long)]
+    pub denoise: Option<bool>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -104,6 +107,7 @@ impl OverrideArgs {
             noise_pattern: self.noise_pattern,
             clamp: self.clamp,
             light_samples: self.light_samples,
+            denoise: self.denoise,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,
@@ -163,8 +167,9 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         s.sharp_rendered
     );
     println!(
-        "  time: render {:.1} s, cache read {:.1} s, events {:.1} s, exposure+png {:.1} s, depth+metadata {:.1} s",
+        "  time: render {:.1} s (of which denoising {:.1} s), cache read {:.1} s, events {:.1} s, exposure+png {:.1} s, depth+metadata {:.1} s",
         secs(s.render_time),
+        secs(s.denoise_time),
         secs(s.cache_read_time),
         secs(s.events_time),
         secs(s.exposure_time),
@@ -229,28 +234,41 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         progress: !args.quiet,
     };
     let r = measure(&plan, &opts)?;
+    let per = format!(
+        "per {} and {}x{} px block",
+        args.window_ms.map(|w| format!("{w} ms window")).unwrap_or_else(|| "segment".into()),
+        args.pool,
+        args.pool
+    );
     println!(
-        "{}: {} frames {}x{}, {:?} noise pattern, threshold {}: {} spp -> {} events, {} spp reference -> {} events",
+        "{}: {} frames {}x{}, {:?} noise pattern, threshold {}, {}: {} spp vs a {} spp reference",
         args.scene.display(),
         r.frames,
         r.width,
         r.height,
         plan.config.noise_pattern,
         plan.events.c_pos,
+        if r.denoised { "denoised" } else { "not denoised" },
         r.spp,
-        r.test_events,
-        r.ref_spp,
-        r.ref_events
+        r.ref_spp
     );
-    println!(
-        "noise-induced events: {:.2}% of all events ({} not in the reference per {} and {}x{} px block); missed: {:.2}%",
-        100.0 * r.noise_fraction(),
-        r.excess,
-        args.window_ms.map(|w| format!("{w} ms window")).unwrap_or_else(|| "segment".into()),
-        args.pool,
-        args.pool,
-        100.0 * r.missed_fraction()
-    );
+    let line = |what: &str, c: &simulator::dataset::noise::Comparison| {
+        println!(
+            "{what}: {} vs {} events; noise-induced {:.2}% ({} not in the reference {per}), missed {:.2}%",
+            c.test_events,
+            c.ref_events,
+            100.0 * c.noise_fraction(),
+            c.excess,
+            100.0 * c.missed_fraction()
+        )
+    };
+    line("noise-induced events (the dataset's frames)", &r.pipeline);
+    if let Some(c) = &r.vs_unfiltered {
+        line("denoised vs an unfiltered reference", c);
+    }
+    if let Some(c) = &r.unfiltered {
+        line("without denoising (same renders)", c);
+    }
     println!(
         "render time: {:.2} s per frame at {} spp, {:.2} s per frame at {} spp",
         r.test_time.as_secs_f64() / r.frames as f64,

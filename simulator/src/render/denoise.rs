@@ -1,0 +1,355 @@
+//! An edge-avoiding À-Trous wavelet denoiser guided by first-hit features (the spatial filter
+//! of SVGF: Schied et al. 2017, "Spatiotemporal Variance-Guided Filtering"; Dammertz et al. 2010).
+//!
+//! Why: at a few samples per pixel, path-tracing noise changes from frame to frame as the camera
+//! moves, and an event camera sees those changes as contrast: they fire false events. Filtering
+//! each frame removes most of that noise while the guides keep what is real:
+//! - the image is *demodulated* first (divided by the first hit's reflectance), so texture is
+//!   never blurred, only the lighting, and remodulated at the end;
+//! - taps across a depth discontinuity, a crease (normal) or a lighting edge larger than the
+//!   local noise (luminance against the pixel's estimated standard deviation) get no weight.
+//!
+//! The filter is a pure function of its inputs, applied per pixel in parallel: the same image
+//! and features give the same bytes whatever the thread count. It is biased (very fine shading
+//! detail, such as a contact shadow thinner than the filter's noise scale, is softened);
+//! `evsim dataset-noise` reports the events it removes against an unfiltered reference.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::film::Image;
+use super::integrator::{luminance, Features, MISS_DEPTH};
+
+/// The filter's settings (SVGF's defaults).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DenoiseParams {
+    /// À-Trous passes; pass `k` spaces its 5x5 taps `2^k` pixels apart (5 = a 125-pixel reach).
+    pub iterations: u32,
+    /// Luminance edge stop, in estimated standard deviations of the pixel's noise.
+    pub sigma_luminance: f32,
+    /// Normal edge stop: the exponent of the taps' normal dot product.
+    pub sigma_normal: f32,
+    /// Depth edge stop, relative to the local depth gradient.
+    pub sigma_depth: f32,
+}
+
+impl Default for DenoiseParams {
+    fn default() -> DenoiseParams {
+        DenoiseParams { iterations: 5, sigma_luminance: 4.0, sigma_normal: 128.0, sigma_depth: 1.0 }
+    }
+}
+
+impl DenoiseParams {
+    /// Check the settings: every field finite, iterations 1..=8, sigmas > 0. The error names the
+    /// field and its allowed range.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(1..=8).contains(&self.iterations) {
+            return Err(format!("iterations = {} must be in 1..=8", self.iterations));
+        }
+        for (name, v) in [
+            ("sigma_luminance", self.sigma_luminance),
+            ("sigma_normal", self.sigma_normal),
+            ("sigma_depth", self.sigma_depth),
+        ] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(format!("{name} = {v} must be a positive finite number"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// B3-spline weights of the 5 taps along each axis.
+const KERNEL: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+
+/// Smallest reflectance divided out (darker first hits are demodulated by this).
+const MIN_ALBEDO: f32 = 1e-3;
+
+/// Filter `img` guided by `features` (from [`super::integrator::Renderer::render_with_features`]
+/// of the same render). Panics if the buffers' sizes differ (a programming error).
+pub fn denoise(img: &Image, features: &Features, p: &DenoiseParams) -> Image {
+    let (w, h) = (img.width as usize, img.height as usize);
+    assert!(
+        features.width == img.width && features.height == img.height && features.albedo.len() == w * h,
+        "features of a different render"
+    );
+    let albedo: Vec<Vec3> = features.albedo.iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
+    let mut irr: Vec<Vec3> = img.pixels.iter().zip(&albedo).map(|(c, a)| *c / *a).collect();
+    let mut var: Vec<f32> =
+        features.variance.iter().zip(&albedo).map(|(v, a)| v / luminance(*a).max(MIN_ALBEDO).powi(2)).collect();
+    let grad = depth_gradients(&features.depth, w, h);
+    let mut next_irr = vec![Vec3::ZERO; w * h];
+    let mut next_var = vec![0.0f32; w * h];
+    for k in 0..p.iterations {
+        let step = 1usize << k;
+        let blurred = blur3(&var, w, h);
+        let lum: Vec<f32> = irr.iter().map(|c| luminance(*c)).collect();
+        let (irr_in, var_in) = (&irr, &var);
+        next_irr.par_chunks_mut(w).zip(next_var.par_chunks_mut(w)).enumerate().for_each(|(y, (row_irr, row_var))| {
+            for x in 0..w {
+                let i = y * w + x;
+                let (zp, np, lp) = (features.depth[i], features.normal[i], lum[i]);
+                let (gx, gy) = grad[i];
+                let inv_l = 1.0 / (p.sigma_luminance * blurred[i].max(0.0).sqrt() + 1e-6);
+                let z_floor = 1e-3 * zp.min(MISS_DEPTH);
+                let (mut c, mut v, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
+                for (j, kj) in KERNEL.iter().enumerate() {
+                    let Some(qy) = offset(y, j, step, h) else { continue };
+                    let dy = (qy as f32 - y as f32).abs();
+                    for (i2, ki) in KERNEL.iter().enumerate() {
+                        let Some(qx) = offset(x, i2, step, w) else { continue };
+                        let q = qy * w + qx;
+                        let weight = if q == i {
+                            ki * kj
+                        } else {
+                            let dx = (qx as f32 - x as f32).abs();
+                            let dz = (zp - features.depth[q]).abs();
+                            let reach = p.sigma_depth * (gx * dx + gy * dy) + z_floor;
+                            let arg = -dz / reach - (lp - lum[q]).abs() * inv_l;
+                            if arg < -20.0 {
+                                continue; // below 2e-9 of the centre tap
+                            }
+                            ki * kj * normal_weight(np.dot(features.normal[q]), p.sigma_normal) * fast_exp(arg)
+                        };
+                        c += irr_in[q] * weight;
+                        v += var_in[q] * weight * weight;
+                        wsum += weight;
+                    }
+                }
+                // the centre tap always has weight, so wsum > 0
+                row_irr[x] = c / wsum;
+                row_var[x] = v / (wsum * wsum);
+            }
+        });
+        std::mem::swap(&mut irr, &mut next_irr);
+        std::mem::swap(&mut var, &mut next_var);
+    }
+    Image { width: img.width, height: img.height, pixels: irr.iter().zip(&albedo).map(|(c, a)| *c * *a).collect() }
+}
+
+/// Index `c + (tap - 2) * step` if it lies in `0..n`.
+#[inline]
+fn offset(c: usize, tap: usize, step: usize, n: usize) -> Option<usize> {
+    let q = c as i64 + (tap as i64 - 2) * step as i64;
+    (q >= 0 && q < n as i64).then_some(q as usize)
+}
+
+/// `e^x` for `x` in [-20, 0] to about 1e-4 relative (a weight, not a measurement):
+/// `2^(x log2 e)` with the integer part in the exponent bits and a degree-4 polynomial for the
+/// fraction. Pure arithmetic, so the same on every machine and thread.
+#[inline]
+fn fast_exp(x: f32) -> f32 {
+    let t = x * std::f32::consts::LOG2_E;
+    let fl = t.floor();
+    // 2^f = sqrt(2) 2^g with g = f - 1/2 in [-1/2, 1/2): Taylor to degree 4 (error < 2e-5)
+    let g = t - fl - 0.5;
+    let p =
+        std::f32::consts::SQRT_2 * (1.0 + g * (0.693_147_2 + g * (0.240_226_5 + g * (0.055_504_1 + g * 0.009_618_1))));
+    let bits = ((fl as i32 + 127) as u32) << 23;
+    f32::from_bits(bits) * p
+}
+
+/// `max(0, cos)^exponent`, by repeated squaring when the exponent is a power of two (the
+/// default 128: seven multiplications instead of a `powf`).
+#[inline]
+fn normal_weight(cos: f32, exponent: f32) -> f32 {
+    let c = cos.max(0.0);
+    if exponent == 128.0 {
+        let mut x = c;
+        for _ in 0..7 {
+            x *= x;
+        }
+        x
+    } else {
+        c.powf(exponent)
+    }
+}
+
+/// Per-pixel |dz/dx| and |dz/dy|: the smaller of the one-sided differences, so that a pixel on a
+/// silhouette takes the slope of its own surface, not the jump to the background.
+fn depth_gradients(z: &[f32], w: usize, h: usize) -> Vec<(f32, f32)> {
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let one_sided = |a: Option<usize>, b: Option<usize>| {
+                let d = |j: Option<usize>| j.map(|j| (z[j] - z[i]).abs()).unwrap_or(f32::INFINITY);
+                let g = d(a).min(d(b));
+                if g.is_finite() {
+                    g
+                } else {
+                    0.0
+                }
+            };
+            let gx = one_sided((x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1));
+            let gy = one_sided((y > 0).then(|| i - w), (y + 1 < h).then(|| i + w));
+            (gx, gy)
+        })
+        .collect()
+}
+
+/// 3x3 binomial blur (edges clamped), for a steadier noise estimate.
+fn blur3(v: &[f32], w: usize, h: usize) -> Vec<f32> {
+    const K: [f32; 3] = [0.25, 0.5, 0.25];
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let mut s = 0.0;
+            for (dy, ky) in K.iter().enumerate() {
+                let yy = (y + dy).saturating_sub(1).min(h - 1);
+                for (dx, kx) in K.iter().enumerate() {
+                    let xx = (x + dx).saturating_sub(1).min(w - 1);
+                    s += ky * kx * v[yy * w + xx];
+                }
+            }
+            s
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::sampling::Rng;
+
+    /// Features of a flat, camera-facing plane at depth `z` with reflectance `albedo`.
+    fn plane(w: u32, h: u32, z: f32, albedo: Vec3, variance: f32) -> Features {
+        let n = (w * h) as usize;
+        Features {
+            width: w,
+            height: h,
+            albedo: vec![albedo; n],
+            normal: vec![Vec3::Z; n],
+            depth: vec![z; n],
+            variance: vec![variance; n],
+        }
+    }
+
+    /// `irradiance * albedo` plus Gaussian-ish noise of standard deviation `sigma` (relative).
+    fn noisy(f: &Features, irradiance: impl Fn(usize) -> f32, sigma: f32, seed: u64) -> Image {
+        let mut rng = Rng::new(seed, 7);
+        let pixels = (0..f.albedo.len())
+            .map(|i| {
+                // sum of 4 uniforms: mean 2, variance 1/3
+                let g = ((0..4).map(|_| rng.next_f32()).sum::<f32>() - 2.0) * 3f32.sqrt();
+                f.albedo[i] * irradiance(i) * (1.0 + sigma * g)
+            })
+            .collect();
+        Image { width: f.width, height: f.height, pixels }
+    }
+
+    fn mean_var(v: impl Iterator<Item = f32>) -> (f64, f64) {
+        let v: Vec<f64> = v.map(|x| x as f64).collect();
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        (m, v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / v.len() as f64)
+    }
+
+    #[test]
+    fn a_noiseless_image_keeps_its_texture_exactly() {
+        // a checkerboard reflectance under uniform light: demodulation leaves a constant to filter
+        let (w, h) = (40, 30);
+        let mut f = plane(w, h, 3.0, Vec3::ONE, 0.0);
+        for (i, a) in f.albedo.iter_mut().enumerate() {
+            *a = if (i % 40 / 3 + i / 40 / 3) % 2 == 0 { Vec3::new(0.8, 0.2, 0.1) } else { Vec3::splat(0.05) };
+        }
+        let img = Image { width: w, height: h, pixels: f.albedo.iter().map(|a| *a * 0.7).collect() };
+        let out = denoise(&img, &f, &DenoiseParams::default());
+        for (a, b) in img.pixels.iter().zip(&out.pixels) {
+            assert!((*a - *b).abs().max_element() < 1e-5, "{a} -> {b}");
+        }
+    }
+
+    #[test]
+    fn noise_on_a_flat_plane_drops_by_more_than_ten_times_and_the_mean_stays() {
+        let (w, h) = (64, 48);
+        let sigma = 0.3;
+        let f = plane(w, h, 2.0, Vec3::splat(0.5), (0.5f32 * sigma).powi(2));
+        let img = noisy(&f, |_| 1.0, sigma, 1);
+        let out = denoise(&img, &f, &DenoiseParams::default());
+        let (m0, v0) = mean_var(img.pixels.iter().map(|p| p.x));
+        let (m1, v1) = mean_var(out.pixels.iter().map(|p| p.x));
+        assert!((m1 - m0).abs() < 0.01 * m0, "mean {m0} -> {m1}");
+        assert!(v1 * 10.0 < v0, "variance {v0} -> {v1}");
+    }
+
+    #[test]
+    fn light_does_not_bleed_across_a_depth_edge_or_a_crease() {
+        // left half: a near bright plane; right half: a far dark plane (or a plane at 90 degrees)
+        let (w, h) = (48, 32);
+        for crease in [false, true] {
+            let mut f = plane(w, h, 1.0, Vec3::splat(0.5), 0.01 * 0.01);
+            for i in 0..(w * h) as usize {
+                if i % w as usize >= (w / 2) as usize {
+                    if crease {
+                        f.normal[i] = Vec3::X;
+                    } else {
+                        f.depth[i] = 5.0;
+                    }
+                }
+            }
+            let right = |i: usize| i % w as usize >= (w / 2) as usize;
+            let img = noisy(&f, |i| if right(i) { 0.05 } else { 1.0 }, 0.02, 2);
+            let out = denoise(&img, &f, &DenoiseParams { sigma_luminance: 1e6, ..DenoiseParams::default() });
+            // the columns next to the edge keep their own side's level (within the noise)
+            for y in 0..h as usize {
+                let (l, r) = (y * w as usize + (w / 2 - 1) as usize, y * w as usize + (w / 2) as usize);
+                assert!((out.pixels[l].x / 0.5 - 1.0).abs() < 0.05, "crease {crease}: left {}", out.pixels[l]);
+                assert!((out.pixels[r].x / 0.5 / 0.05 - 1.0).abs() < 0.05, "crease {crease}: right {}", out.pixels[r]);
+            }
+        }
+    }
+
+    #[test]
+    fn a_lighting_edge_larger_than_the_noise_stays_sharp() {
+        // one plane, a shadow edge down the middle; only the luminance stop can keep it
+        let (w, h) = (48, 32);
+        let sigma = 0.05;
+        let f = plane(w, h, 2.0, Vec3::ONE, sigma * sigma);
+        let right = |i: usize| i % w as usize >= (w / 2) as usize;
+        let img = noisy(&f, |i| if right(i) { 0.2 } else { 1.0 }, sigma, 3);
+        let out = denoise(&img, &f, &DenoiseParams::default());
+        for y in 0..h as usize {
+            let (l, r) = (y * w as usize + (w / 2 - 1) as usize, y * w as usize + (w / 2) as usize);
+            assert!(out.pixels[l].x > 0.85 && out.pixels[r].x < 0.3, "row {y}: {} | {}", out.pixels[l], out.pixels[r]);
+        }
+    }
+
+    #[test]
+    fn the_output_does_not_depend_on_the_thread_count() {
+        let (w, h) = (37, 23);
+        let mut f = plane(w, h, 2.0, Vec3::splat(0.3), 0.02);
+        for (i, z) in f.depth.iter_mut().enumerate() {
+            *z += (i % 7) as f32 * 0.01;
+        }
+        let img = noisy(&f, |i| 1.0 + (i % 5) as f32 * 0.1, 0.3, 4);
+        let run = |n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+                .install(|| denoise(&img, &f, &DenoiseParams::default()))
+        };
+        assert_eq!(run(1), run(3));
+    }
+
+    #[test]
+    fn fast_exp_matches_exp_on_the_weights_range() {
+        for i in 0..=20_000 {
+            let x = -20.0 * i as f32 / 20_000.0;
+            let (a, b) = (fast_exp(x), x.exp());
+            assert!(((a - b) / b).abs() < 2e-4, "x = {x}: {a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn bad_settings_name_the_field() {
+        let ok = DenoiseParams::default();
+        assert!(ok.validate().is_ok());
+        let e = DenoiseParams { iterations: 0, ..ok }.validate().unwrap_err();
+        assert!(e.contains("iterations"), "{e}");
+        let e = DenoiseParams { sigma_depth: f32::NAN, ..ok }.validate().unwrap_err();
+        assert!(e.contains("sigma_depth"), "{e}");
+        let e = DenoiseParams { sigma_luminance: -1.0, ..ok }.validate().unwrap_err();
+        assert!(e.contains("sigma_luminance"), "{e}");
+    }
+}

@@ -103,7 +103,8 @@ pub fn figure(plan: &SweepPlan, scene_name: &str, table: &Table) -> Option<Figur
         ("SSIM (dashed; LPIPS: no weights)".to_string(), series(&|s| Some(s.ssim)))
     };
     // the scene goes into the title unless the sweep's title already names it
-    let head = if plan.title.contains(scene_name) { plan.title.clone() } else { format!("{}: {scene_name}", plan.title) };
+    let head =
+        if plan.title.contains(scene_name) { plan.title.clone() } else { format!("{}: {scene_name}", plan.title) };
     Some(Figure {
         title: match plan.axes.get(1) {
             Some(a) => format!("{head}; lines: method, {}", a.label),

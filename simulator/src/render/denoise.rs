@@ -144,8 +144,8 @@ fn fast_exp(x: f32) -> f32 {
     let fl = t.floor();
     // 2^f = sqrt(2) 2^g with g = f - 1/2 in [-1/2, 1/2): Taylor to degree 4 (error < 2e-5)
     let g = t - fl - 0.5;
-    let p =
-        std::f32::consts::SQRT_2 * (1.0 + g * (0.693_147_2 + g * (0.240_226_5 + g * (0.055_504_1 + g * 0.009_618_1))));
+    let p = std::f32::consts::SQRT_2
+        * (1.0 + g * (std::f32::consts::LN_2 + g * (0.240_226_5 + g * (0.055_504_1 + g * 0.009_618_1))));
     let bits = ((fl as i32 + 127) as u32) << 23;
     f32::from_bits(bits) * p
 }

@@ -113,6 +113,10 @@ pub struct RenderArgs {
     /// (0 = off; biased, removes fireflies).
     #[arg(long, default_value_t = 0.0)]
     pub clamp: f32,
+    /// Filter the image with the feature-guided denoiser the dataset writer uses
+    /// (`[dataset] denoise`); biased, far less noise at low spp.
+    #[arg(long)]
+    pub denoise: bool,
 }
 
 /// Parse "x,y,z" into a vector.
@@ -202,7 +206,12 @@ fn render(args: &RenderArgs) -> Result<()> {
     let build_s = t1.elapsed().as_secs_f64();
     let pb = progress_bar(0, "render");
     let t2 = Instant::now();
-    let img = renderer.render(&st, Some(&pb));
+    let img = if args.denoise {
+        let (img, features) = renderer.render_with_features(&st);
+        simulator::render::denoise::denoise(&img, &features, &simulator::render::denoise::DenoiseParams::default())
+    } else {
+        renderer.render(&st, Some(&pb))
+    };
     let render_s = t2.elapsed().as_secs_f64();
     pb.finish_and_clear();
     write_image(&img, &args.out).with_context(|| format!("writing {}", args.out.display()))?;

@@ -218,6 +218,8 @@ fn an_interrupted_run_resumes_to_the_same_bytes() {
     assert!(!b.join("dataset.toml").exists(), "no manifest before the end");
     let s = write_dataset(&p, &opts(&b, None)).unwrap();
     assert_eq!((s.frames_rendered, s.sharp_rendered), (70, 9), "resumes after the 50 cached frames");
+    // the temporal window of frame 50 needs frames 46..49 again (not their filtered results)
+    assert_eq!(s.window_renders, 4, "{s:?}");
     assert_same_files(&a, &b);
 
     // a shared frame cache: an exposure or threshold change re-renders nothing but the sharp
@@ -282,10 +284,16 @@ fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
     let dir = temp_dir("dataset", "noise");
     let toml = tiny_scene(&dir);
     let opts = NoiseOptions { frames: 12, factor: 4, ..NoiseOptions::default() };
-    let run = |pattern, denoise| {
-        let o = Overrides { noise_pattern: Some(pattern), denoise: Some(denoise), ..Overrides::default() };
+    let run_radius = |pattern, denoise, radius| {
+        let o = Overrides {
+            noise_pattern: Some(pattern),
+            denoise: Some(denoise),
+            temporal_radius: Some(radius),
+            ..Overrides::default()
+        };
         measure(&Plan::resolve(&toml, &o).unwrap(), &opts).unwrap()
     };
+    let run = |pattern, denoise| run_radius(pattern, denoise, 4);
     let (fixed, flicker) = (run(NoisePattern::Fixed, false), run(NoisePattern::PerFrame, false));
     assert_eq!((fixed.frames, fixed.spp, fixed.ref_spp, fixed.denoised), (12, 2, 8, false));
     assert!(fixed.unfiltered.is_none() && fixed.vs_unfiltered.is_none());
@@ -307,6 +315,13 @@ fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
     assert!(
         10 * denoised.pipeline.excess < 7 * unfiltered.excess,
         "denoised {:?} vs unfiltered {unfiltered:?}",
+        denoised.pipeline
+    );
+    // the temporal window removes noise events the spatial filter alone leaves
+    let spatial = run_radius(NoisePattern::PerFrame, true, 0).pipeline;
+    assert!(
+        10 * denoised.pipeline.excess < 8 * spatial.excess,
+        "temporal + spatial {:?} vs spatial {spatial:?}",
         denoised.pipeline
     );
     let bad = measure(&plan(&toml), &NoiseOptions { factor: 1, ..NoiseOptions::default() }).unwrap_err();

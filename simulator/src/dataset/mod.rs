@@ -27,6 +27,7 @@ pub mod error;
 pub mod noise;
 pub mod plan;
 pub mod preview;
+pub mod sequence;
 pub mod settings;
 pub mod writer;
 

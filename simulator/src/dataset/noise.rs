@@ -1,7 +1,9 @@
 //! How many events does path-tracing noise fire? A short segment of the trajectory is rendered
 //! twice, at the dataset's `spp` and at `factor x spp` (the reference), with the dataset's noise
-//! pattern; both sequences go through the same event model, and the events are compared
-//! per pixel, polarity and time window.
+//! pattern; both sequences go through the dataset's filters ([`super::sequence`]: the temporal
+//! window, which also renders the `temporal_radius` frames on each side of the segment, and the
+//! spatial filter) and the same event model, and the events are compared per pixel, polarity
+//! and time window.
 //!
 //! With `n_test(b)` and `n_ref(b)` the event counts in bin `b = (pixel, polarity, window)`
 //! (by default one window spans the whole segment: within it, *when* a pixel crosses a level
@@ -22,10 +24,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::cache::round_to_f16;
 use super::plan::Plan;
-use super::writer::render_settings;
+use super::sequence::SequenceRenderer;
 use super::DatasetError;
 use crate::events::{EventSimulator, VecSink};
-use crate::render::denoise::{denoise, DenoiseParams};
 use crate::render::integrator::Renderer;
 
 /// What to measure.
@@ -107,6 +108,8 @@ pub struct NoiseReport {
     /// With denoising on: unfiltered frames at `spp` against unfiltered frames at `ref_spp`
     /// (the measure without the filter, from the same renders).
     pub unfiltered: Option<Comparison>,
+    /// Frames rendered per sequence: the segment plus the temporal window's margins.
+    pub renders: usize,
     /// Wall time rendering the test sequence (and filtering it).
     pub test_time: Duration,
     /// Wall time rendering the reference (and filtering it).
@@ -132,7 +135,7 @@ fn event_counts(
     spp: u32,
     opts: &NoiseOptions,
     pb: &ProgressBar,
-) -> Result<Vec<Counted>, DatasetError> {
+) -> Result<(Vec<Counted>, usize), DatasetError> {
     let c = &plan.config;
     let variants = if c.denoise { 2 } else { 1 };
     let mut sims = (0..variants)
@@ -141,17 +144,13 @@ fn event_counts(
         .map_err(|e| DatasetError::config(&plan.scene_file, "events", e.to_string()))?;
     let t_start = plan.clock.time_ns(frames.start);
     let mut out: Vec<Counted> = (0..variants).map(|_| Counted::default()).collect();
+    let mut seq = SequenceRenderer::new(plan, renderer, spp);
     for k in frames {
         let t_ns = plan.clock.time_ns(k);
-        let pose = plan.trajectory.pose_at(t_ns).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
-        let mut s = render_settings(plan, &pose, k, false);
-        s.spp = spp;
-        let images = if c.denoise {
-            let (raw, features) = renderer.render_with_features(&s);
-            vec![denoise(&raw, &features, &DenoiseParams::default()), raw]
-        } else {
-            vec![renderer.render(&s, None)]
-        };
+        let mut images = vec![seq.frame(k)?];
+        if c.denoise {
+            images.push(seq.raw(k).expect("denoising keeps the window's raw renders").clone());
+        }
         for ((mut img, sim), counted) in images.into_iter().zip(&mut sims).zip(&mut out) {
             round_to_f16(&mut img);
             img.pixels.iter_mut().for_each(|p| *p *= c.gain);
@@ -166,7 +165,7 @@ fn event_counts(
         }
         pb.inc(spp as u64);
     }
-    Ok(out)
+    Ok((out, seq.renders))
 }
 
 /// Measure the noise-induced events of `plan`'s settings on a segment (see the module docs).
@@ -199,11 +198,11 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
     let range = start..start + frames;
     pb.set_message("test");
     let t = Instant::now();
-    let test = event_counts(plan, &renderer, range.clone(), c.spp, opts, &pb)?;
+    let (test, renders) = event_counts(plan, &renderer, range.clone(), c.spp, opts, &pb)?;
     let test_time = t.elapsed();
     pb.set_message("reference");
     let t = Instant::now();
-    let reference = event_counts(plan, &renderer, range, ref_spp, opts, &pb)?;
+    let (reference, _) = event_counts(plan, &renderer, range, ref_spp, opts, &pb)?;
     let ref_time = t.elapsed();
     pb.finish_and_clear();
     Ok(NoiseReport {
@@ -216,6 +215,7 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
         pipeline: Comparison::of(&test[0], &reference[0]),
         vs_unfiltered: c.denoise.then(|| Comparison::of(&test[0], &reference[1])),
         unfiltered: c.denoise.then(|| Comparison::of(&test[1], &reference[1])),
+        renders,
         test_time,
         ref_time,
     })

@@ -78,6 +78,9 @@ struct RenderIdentity<'a> {
     /// Only written when on, so that the keys of undenoised frames are those of earlier versions.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     denoise: bool,
+    /// Only written when it shapes the frames (denoising on, radius > 0).
+    #[serde(skip_serializing_if = "is_zero")]
+    temporal_radius: u32,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -88,6 +91,10 @@ struct FullIdentity<'a> {
     render_key: &'a str,
     dataset: &'a DatasetConfig,
     events: &'a EventConfig,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 fn sha256_hex(bytes: &[u8]) -> String {
@@ -226,6 +233,7 @@ impl Plan {
                 clamp_bits: config.clamp.to_bits(),
                 light_samples: config.light_samples,
                 denoise: config.denoise,
+                temporal_radius: if config.denoise { config.temporal_radius } else { 0 },
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })
@@ -294,6 +302,12 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
     }
     if d.max_depth == 0 {
         return bad("dataset.max_depth", "0 must be at least 1 path segment".into());
+    }
+    if d.temporal_radius as usize > crate::render::temporal::MAX_RADIUS {
+        return bad(
+            "dataset.temporal_radius",
+            format!("{} must be at most {} frames", d.temporal_radius, crate::render::temporal::MAX_RADIUS),
+        );
     }
     if d.light_samples == 0 || d.light_samples > 64 {
         return bad("dataset.light_samples", format!("{} must be 1..=64", d.light_samples));

@@ -53,8 +53,9 @@ pub fn contact_sheet(plan: &Plan, renderer: &Renderer, view: Option<usize>) -> R
             plan.trajectory.pose_at(plan.clock.time_ns(k)).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
         Ok(super::writer::render_settings(plan, &pose, k, sharp))
     };
+    let mut seq = super::sequence::SequenceRenderer::new(plan, renderer, c.spp);
     for k in first..=last {
-        let mut frame = super::writer::render_frame(renderer, &settings(k, false)?, c.denoise).0;
+        let mut frame = seq.frame(k)?;
         super::cache::round_to_f16(&mut frame);
         let t_ns = plan.clock.time_ns(k);
         let mut events = VecSink::default();

@@ -13,6 +13,7 @@
 //! sharp_spp = 64           # samples per pixel of the sharp renders (default 4 x spp)
 //! seed = 0                 # renderer seed
 //! denoise = true           # feature-guided denoising of every rendered frame
+//! temporal_radius = 4      # with denoise: frames on each side reprojected into each frame
 //! response = { type = "gamma", gamma = 2.2 }
 //! ```
 //!
@@ -92,6 +93,10 @@ pub struct DatasetConfig {
     /// À-Trous denoiser ([`crate::render::denoise`]) before anything else sees it: far fewer
     /// events fired by path-tracing noise at the same spp (see `evsim dataset-noise`).
     pub denoise: bool,
+    /// With `denoise`: frames on each side whose lighting is reprojected into each sequence frame
+    /// before the spatial filter ([`crate::render::temporal`]; 0 = spatial filter only, at most
+    /// 16). The sharp renders are single instants and get the spatial filter only.
+    pub temporal_radius: u32,
 }
 
 impl Default for DatasetConfig {
@@ -117,6 +122,7 @@ impl Default for DatasetConfig {
             clamp: 0.0,
             light_samples: 1,
             denoise: true,
+            temporal_radius: 4,
         }
     }
 }
@@ -152,6 +158,8 @@ pub struct Overrides {
     pub light_samples: Option<u32>,
     /// `[dataset] denoise`: filter the rendered frames (true/false).
     pub denoise: Option<bool>,
+    /// `[dataset] temporal_radius`: frames on each side reprojected into each frame (count).
+    pub temporal_radius: Option<u32>,
     /// `[events.noise.threshold_mismatch] sigma`: per-pixel threshold spread (log units; 0 = off).
     pub threshold_sigma: Option<f32>,
     /// `[events.noise] leak_rate_hz`: leak events per pixel per second (Hz).
@@ -187,6 +195,7 @@ impl Overrides {
             clamp: over.clamp.or(self.clamp),
             light_samples: over.light_samples.or(self.light_samples),
             denoise: over.denoise.or(self.denoise),
+            temporal_radius: over.temporal_radius.or(self.temporal_radius),
             threshold_sigma: over.threshold_sigma.or(self.threshold_sigma),
             leak_rate_hz: over.leak_rate_hz.or(self.leak_rate_hz),
             shot_noise_rate_hz: over.shot_noise_rate_hz.or(self.shot_noise_rate_hz),
@@ -242,6 +251,7 @@ impl Overrides {
         d.clamp = self.clamp.unwrap_or(d.clamp);
         d.light_samples = self.light_samples.unwrap_or(d.light_samples);
         d.denoise = self.denoise.unwrap_or(d.denoise);
+        d.temporal_radius = self.temporal_radius.unwrap_or(d.temporal_radius);
         let noise = &mut ev.noise;
         if let Some(sigma) = self.threshold_sigma {
             let mode = noise.threshold_mismatch.map(|m| m.mode).unwrap_or_default();

@@ -3,7 +3,8 @@
 //! Stages, streamed frame by frame (memory: a few images plus the event model's per-pixel
 //! state, whatever the sequence length):
 //! 1. **Frames.** Frame `k` at `t_k` comes from the frame cache or is rendered (`spp` samples,
-//!    the fixed or per-frame noise pattern), rounded to half floats and cached. Its depth grid
+//!    the fixed or per-frame noise pattern) and filtered (with `denoise`: the temporal window
+//!    and the spatial filter, see [`super::sequence`]), rounded to half floats and cached. Its depth grid
 //!    gives the LLFF bounds of row `k` of `all_poses_bounds.npy`. The frame then feeds
 //! 2. **events** (the event model over `gain * frame`, into `events.h5`) and
 //! 3. **exposure** (the box-filter average of every blurry view whose window it overlaps;
@@ -27,6 +28,7 @@ use serde::Serialize;
 use super::cache::{round_to_f16, FrameCache};
 use super::depth::{bounds, depth_grid};
 use super::plan::{Plan, PIPELINE_VERSION};
+use super::sequence::SequenceRenderer;
 use super::settings::NoisePattern;
 use super::DatasetError;
 use crate::events::sinks::NerfH5Sink;
@@ -66,6 +68,9 @@ pub struct Summary {
     pub frames: usize,
     /// Frames rendered in this run (the rest came from the cache).
     pub frames_rendered: usize,
+    /// Extra renders of frames the cache already held, made for the temporal window of the
+    /// first frames a resumed run filters (`[dataset] temporal_radius` at most).
+    pub window_renders: usize,
     /// Sharp views rendered in this run.
     pub sharp_rendered: usize,
     /// ON events written.
@@ -242,22 +247,31 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     let mut sink = NerfH5Sink::create(&events_path).map_err(|e| DatasetError::io(&events_path, "cannot create", e))?;
     let mut frame_bounds = Vec::with_capacity(n_frames);
     let mut frame_poses = Vec::with_capacity(n_frames);
+    let mut seq = SequenceRenderer::new(plan, &renderer, c.spp);
     pb.set_message("frames");
     for k in 0..n_frames {
         let t_ns = plan.clock.time_ns(k);
         let pose = plan.trajectory.pose_at(t_ns).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
         let path = cache.frame_path(c.fps, c.spp, c.noise_pattern, k);
-        let (frame, rendered) = cached_or_rendered(
-            &renderer,
-            &path,
-            &render_settings(plan, &pose, k, false),
-            plan.config.denoise,
-            &mut summary,
-        )?;
-        if rendered {
-            summary.frames_rendered += 1;
-            count_render(&mut summary)?;
-        }
+        let t = Instant::now();
+        let frame = match FrameCache::load(&path)?.filter(|i| (i.width, i.height) == (w, h)) {
+            Some(img) => {
+                summary.cache_read_time += t.elapsed();
+                img
+            }
+            None => {
+                let (renders, denoise_time) = (seq.renders, seq.denoise_time);
+                let mut img = seq.frame(k)?;
+                round_to_f16(&mut img);
+                FrameCache::store(&path, &img)?;
+                summary.render_time += t.elapsed();
+                summary.denoise_time += seq.denoise_time - denoise_time;
+                summary.frames_rendered += 1;
+                summary.window_renders += seq.renders - renders - 1;
+                count_render(&mut summary)?;
+                img
+            }
+        };
         pb.inc(c.spp as u64);
 
         // depth bounds of this frame's camera

@@ -270,13 +270,14 @@ impl<'a> Renderer<'a> {
             // next-event estimation: every delta light, plus `light_samples` lights sampled by
             // power (the first from `a`, further ones from fresh numbers after `b`, so that one
             // light sample consumes exactly the numbers it always did)
-            let mut sampled = Vec::with_capacity(s.light_samples.max(1) as usize);
-            sampled.push(self.lights.sample(scene, sh.p, u_sel, u_light));
-            for _ in 1..s.light_samples.max(1) {
+            // (drawn lazily, in order, without a heap allocation per vertex)
+            let first_sample = self.lights.sample(scene, sh.p, u_sel, u_light);
+            let more_samples = (1..s.light_samples.max(1)).map(|_| {
                 let c = rng.next_4d();
-                sampled.push(self.lights.sample(scene, sh.p, c[2], Vec2::new(c[0], c[1])));
-            }
-            for ls in self.lights.delta_incident(scene, sh.p).chain(sampled.into_iter().flatten()) {
+                self.lights.sample(scene, sh.p, c[2], Vec2::new(c[0], c[1]))
+            });
+            let sampled = std::iter::once(first_sample).chain(more_samples).flatten();
+            for ls in self.lights.delta_incident(scene, sh.p).chain(sampled) {
                 let wi_local = sh.frame.to_local(ls.wi);
                 if ls.wi.dot(ng_side) > 0.0 {
                     let (f, bsdf_pdf) = bsdf.eval_and_pdf(wo, wi_local);

@@ -8,6 +8,7 @@
 //! - [`integrator`]: the unidirectional path tracer with next-event estimation and MIS.
 //! - [`film`]: the image buffer, the tiled parallel render loop and its settings.
 //! - [`denoise`]: the feature-guided À-Trous denoiser applied to dataset frames.
+//! - [`temporal`]: reprojection of neighbouring frames' lighting before the denoiser.
 //! - [`chi2`]: a chi-square goodness-of-fit test for direction samplers (used by the tests).
 
 pub mod accel;
@@ -19,3 +20,4 @@ pub mod integrator;
 pub mod lights;
 pub mod sampler;
 pub mod sampling;
+pub mod temporal;

@@ -47,4 +47,43 @@ impl Camera {
         let y = (1.0 - 2.0 * p.y / height as f32) * tan_half;
         self.to_world.transform_vector3(Vec3::new(x, y, -1.0)).normalize()
     }
+
+    /// Film point (pixels, as [`Camera::direction`] takes them) where world point `x` appears in
+    /// an image of `width` x `height`, or `None` when `x` is not in front of the camera. The
+    /// point may lie outside the image.
+    pub fn project(&self, x: Vec3, width: u32, height: u32) -> Option<Vec2> {
+        // rigid transform: the inverse rotation is the transpose
+        let d = x - self.origin();
+        let axes = [self.to_world.x_axis, self.to_world.y_axis, self.to_world.z_axis].map(|a| a.truncate());
+        let local = Vec3::new(d.dot(axes[0]), d.dot(axes[1]), d.dot(axes[2]));
+        if !(local.z < 0.0) {
+            return None;
+        }
+        let tan_half = (self.yfov * 0.5).tan();
+        let aspect = width as f32 / height as f32;
+        let (sx, sy) = (local.x / -local.z / (tan_half * aspect), local.y / -local.z / tan_half);
+        Some(Vec2::new((sx + 1.0) * 0.5 * width as f32, (1.0 - sy) * 0.5 * height as f32))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn project_inverts_direction() {
+        let cam = Camera::look_at(Vec3::new(0.3, 1.2, 5.0), Vec3::new(-0.5, 0.8, 0.0), Vec3::Y, 0.8);
+        let (w, h) = (600, 400);
+        for p in [Vec2::new(0.5, 0.5), Vec2::new(300.0, 200.0), Vec2::new(599.2, 17.3), Vec2::new(12.0, 398.0)] {
+            for dist in [0.1f32, 3.0, 250.0] {
+                let x = cam.origin() + cam.direction(p, w, h) * dist;
+                let q = cam.project(x, w, h).expect("in front");
+                assert!((q - p).length() < 1e-3 * dist.max(1.0), "{p} at {dist}: {q}");
+            }
+        }
+        // behind the camera and at the eye: nothing
+        let behind = cam.origin() - cam.direction(Vec2::new(300.0, 200.0), w, h);
+        assert_eq!(cam.project(behind, w, h), None);
+        assert_eq!(cam.project(cam.origin(), w, h), None);
+    }
 }

@@ -74,6 +74,10 @@ pub struct OverrideArgs {
     /// Override [dataset] denoise: filter the rendered frames (true or false).
     #[arg(long)]
     pub denoise: Option<bool>,
+    /// Override [dataset] temporal_radius: frames on each side reprojected into each frame
+    /// before denoising (0 = spatial filter only).
+    #[arg(long)]
+    pub temporal_radius: Option<u32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -108,6 +112,7 @@ impl OverrideArgs {
             clamp: self.clamp,
             light_samples: self.light_samples,
             denoise: self.denoise,
+            temporal_radius: self.temporal_radius,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,
@@ -161,9 +166,14 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         start.elapsed().as_secs_f64()
     );
     println!(
-        "  frames: {} rendered, {} from cache; sharp renders: {}",
+        "  frames: {} rendered, {} from cache{}; sharp renders: {}",
         s.frames_rendered,
         s.frames - s.frames_rendered,
+        if s.window_renders > 0 {
+            format!(" ({} re-rendered for the temporal window)", s.window_renders)
+        } else {
+            String::new()
+        },
         s.sharp_rendered
     );
     println!(
@@ -248,7 +258,13 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         r.height,
         plan.config.noise_pattern,
         plan.events.c_pos,
-        if r.denoised { "denoised" } else { "not denoised" },
+        if !r.denoised {
+            "not denoised".to_string()
+        } else if plan.config.temporal_radius > 0 {
+            format!("denoised (temporal radius {})", plan.config.temporal_radius)
+        } else {
+            "denoised (spatial only)".to_string()
+        },
         r.spp,
         r.ref_spp
     );
@@ -270,11 +286,16 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         line("without denoising (same renders)", c);
     }
     println!(
-        "render time: {:.2} s per frame at {} spp, {:.2} s per frame at {} spp",
-        r.test_time.as_secs_f64() / r.frames as f64,
+        "render time (filters included): {:.2} s per frame at {} spp, {:.2} s per frame at {} spp{}",
+        r.test_time.as_secs_f64() / r.renders as f64,
         r.spp,
-        r.ref_time.as_secs_f64() / r.frames as f64,
-        r.ref_spp
+        r.ref_time.as_secs_f64() / r.renders as f64,
+        r.ref_spp,
+        if r.renders > r.frames {
+            format!(" ({} renders each: the segment and the temporal window's margins)", r.renders)
+        } else {
+            String::new()
+        }
     );
     Ok(())
 }

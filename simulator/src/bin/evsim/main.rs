@@ -113,8 +113,9 @@ pub struct RenderArgs {
     /// (0 = off; biased, removes fireflies).
     #[arg(long, default_value_t = 0.0)]
     pub clamp: f32,
-    /// Filter the image with the feature-guided denoiser the dataset writer uses
-    /// (`[dataset] denoise`); biased, far less noise at low spp.
+    /// Filter the image with the feature-guided spatial denoiser the dataset writer uses
+    /// (`[dataset] denoise`; a single image has no temporal window); biased, far less noise
+    /// at low spp.
     #[arg(long)]
     pub denoise: bool,
 }

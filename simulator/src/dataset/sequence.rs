@@ -1,0 +1,118 @@
+//! The frames of a dataset's sequence as every stage sees them: the path tracer's render of
+//! frame `k`, then, with `[dataset] denoise`, the temporal window
+//! ([`crate::render::temporal`], `temporal_radius` frames on each side) and the spatial filter
+//! ([`crate::render::denoise`]).
+//!
+//! Frames are asked for in increasing order. The raw renders (with their feature buffers) of
+//! the window around the current frame stay in memory, so each frame is rendered once however
+//! many windows it serves; asking for a frame further on drops what no later window needs. A
+//! frame is a pure function of the plan and its index: a run that starts at frame `m` (a resumed
+//! run) re-renders the `radius` frames before it and gets the same bytes as one that started at
+//! 0. Memory: `2 radius + 1` raw frames with features (about 10 MB each at 600x400).
+
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+
+use super::plan::Plan;
+use super::writer::render_settings;
+use super::DatasetError;
+use crate::render::denoise::{denoise, DenoiseParams};
+use crate::render::film::Image;
+use crate::render::integrator::Renderer;
+use crate::render::temporal::{gather, SequenceFrame, TemporalParams};
+
+/// Renders and filters the frames of a plan's sequence (see the [module docs](self)).
+pub struct SequenceRenderer<'p, 'r> {
+    plan: &'p Plan,
+    renderer: &'r Renderer<'p>,
+    spp: u32,
+    temporal: TemporalParams,
+    /// Consecutive raw renders `(index, frame)` (only with denoising).
+    window: VecDeque<(usize, SequenceFrame)>,
+    /// Raw renders made so far.
+    pub renders: usize,
+    /// Wall time spent rendering.
+    pub render_time: Duration,
+    /// Wall time spent filtering (temporal window and spatial filter).
+    pub denoise_time: Duration,
+}
+
+impl<'p, 'r> SequenceRenderer<'p, 'r> {
+    /// Frames of `plan` rendered with `renderer` at `spp` samples per pixel (the plan's own
+    /// `spp` for the dataset; the noise measurement also renders its reference through here).
+    pub fn new(plan: &'p Plan, renderer: &'r Renderer<'p>, spp: u32) -> SequenceRenderer<'p, 'r> {
+        let c = &plan.config;
+        let radius = if c.denoise { c.temporal_radius as usize } else { 0 };
+        SequenceRenderer {
+            plan,
+            renderer,
+            spp,
+            temporal: TemporalParams { radius, ..TemporalParams::default() },
+            window: VecDeque::new(),
+            renders: 0,
+            render_time: Duration::ZERO,
+            denoise_time: Duration::ZERO,
+        }
+    }
+
+    /// Frame `k` as the dataset's stages see it (not yet rounded to halves). `k` must not be
+    /// smaller than in the previous call (a programming error otherwise).
+    pub fn frame(&mut self, k: usize) -> Result<Image, DatasetError> {
+        if !self.plan.config.denoise {
+            let settings = self.settings(k)?;
+            let t = Instant::now();
+            let img = self.renderer.render(&settings, None);
+            self.renders += 1;
+            self.render_time += t.elapsed();
+            return Ok(img);
+        }
+        let r = self.temporal.radius;
+        let (lo, hi) = (k.saturating_sub(r), (k + r).min(self.plan.clock.n_frames - 1));
+        self.fill(lo, hi)?;
+        let t = Instant::now();
+        let window = self.window.make_contiguous();
+        let center = k - lo;
+        debug_assert_eq!(window[center].0, k);
+        let frames: Vec<&SequenceFrame> = window.iter().map(|(_, f)| f).collect();
+        let (img, features) = gather(&frames, center, &self.temporal);
+        let out = denoise(&img, &features, &DenoiseParams::default());
+        self.denoise_time += t.elapsed();
+        Ok(out)
+    }
+
+    /// The unfiltered render of frame `k` when it is in the window (denoising on and `k` asked
+    /// for last or within the window since).
+    pub fn raw(&self, k: usize) -> Option<&Image> {
+        self.window.iter().find(|(i, _)| *i == k).map(|(_, f)| &f.image)
+    }
+
+    /// Make the window hold exactly the raw renders `lo..=hi` (rendering the missing ones).
+    fn fill(&mut self, lo: usize, hi: usize) -> Result<(), DatasetError> {
+        assert!(self.window.front().is_none_or(|(i, _)| *i <= lo + self.temporal.radius), "frames asked out of order");
+        while self.window.front().is_some_and(|(i, _)| *i < lo) {
+            self.window.pop_front();
+        }
+        let mut next = self.window.back().map_or(lo, |(i, _)| i + 1);
+        while next <= hi {
+            let settings = self.settings(next)?;
+            let t = Instant::now();
+            let (image, features) = self.renderer.render_with_features(&settings);
+            self.renders += 1;
+            self.render_time += t.elapsed();
+            self.window.push_back((next, SequenceFrame { camera: settings.camera, image, features }));
+            next += 1;
+        }
+        Ok(())
+    }
+
+    fn settings(&self, k: usize) -> Result<crate::render::film::RenderSettings, DatasetError> {
+        let pose = self
+            .plan
+            .trajectory
+            .pose_at(self.plan.clock.time_ns(k))
+            .map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
+        let mut s = render_settings(self.plan, &pose, k, false);
+        s.spp = self.spp;
+        Ok(s)
+    }
+}

@@ -1,0 +1,163 @@
+//! Temporal reuse for a rendered frame sequence: before the spatial filter
+//! ([`super::denoise`]), each frame averages in the lighting its neighbours saw at the same
+//! surface points (the temporal half of SVGF, Schied et al. 2017, made symmetric because a
+//! dataset renders the whole sequence before anything needs a frame).
+//!
+//! For every pixel of the centre frame, its first-hit point (camera ray times mean hit
+//! distance) is projected into each neighbour within `radius` frames with the neighbour's own
+//! camera; the neighbour's demodulated irradiance (image over first-hit reflectance) is read
+//! bilinearly from the taps whose hit distance (within `depth_tolerance`, relative) and normal
+//! (dot at least `min_normal_dot`) show the same surface. Neighbours weigh `1 - |dk| / (radius + 1)`
+//! (a tent, so the window has no lag: a static scene's lighting is not delayed), the centre 1.
+//! The result is remodulated with the centre frame's reflectance, so texture stays sharp; the
+//! variance guide of the spatial filter becomes the variance of the weighted mean.
+//!
+//! Why it matters: path-tracing noise that changes from frame to frame fires false events. A
+//! fixed sample pattern keeps most of a pixel's estimate steady, but as the camera moves,
+//! secondary and shadow rays cross visibility edges and the estimate jumps; neighbours'
+//! reprojected pixels carry independent samples, so averaging them removes such jumps where a
+//! single frame's spatial filter cannot tell them from real lighting edges.
+//!
+//! Reprojection assumes a static scene (only the camera moves) and view-independent shading at
+//! the first hit: glossy highlights are averaged over the window (±4 ms at the default radius
+//! and 1000 FPS), a slight temporal blur. Like the spatial filter, the result is a pure function
+//! of its inputs: the same bytes whatever the thread count.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::film::Image;
+use super::integrator::{luminance, Features};
+use crate::scene::Camera;
+
+/// One rendered frame of a sequence: its camera, image and first-hit features.
+#[derive(Clone, Debug)]
+pub struct SequenceFrame {
+    /// The camera the frame was rendered with.
+    pub camera: Camera,
+    /// The path tracer's (unfiltered) image.
+    pub image: Image,
+    /// The first-hit buffers of the same render.
+    pub features: Features,
+}
+
+/// Settings of the temporal window.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TemporalParams {
+    /// Frames on each side averaged into a frame (0 = none).
+    pub radius: usize,
+    /// Largest relative difference of hit distances for a neighbour's tap to count as the same
+    /// surface.
+    pub depth_tolerance: f32,
+    /// Smallest dot product of the normals for a neighbour's tap to count as the same surface.
+    pub min_normal_dot: f32,
+}
+
+impl Default for TemporalParams {
+    fn default() -> TemporalParams {
+        TemporalParams { radius: 4, depth_tolerance: 0.03, min_normal_dot: 0.9 }
+    }
+}
+
+/// Largest supported radius (a window of 33 frames held in memory).
+pub const MAX_RADIUS: usize = 16;
+
+impl TemporalParams {
+    /// Check the settings; the error names the field and its allowed range.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.radius > MAX_RADIUS {
+            return Err(format!("radius = {} must be at most {MAX_RADIUS} frames", self.radius));
+        }
+        if !(self.depth_tolerance > 0.0 && self.depth_tolerance < 1.0) {
+            return Err(format!("depth_tolerance = {} must be in (0, 1)", self.depth_tolerance));
+        }
+        if !(self.min_normal_dot > -1.0 && self.min_normal_dot <= 1.0) {
+            return Err(format!("min_normal_dot = {} must be in (-1, 1]", self.min_normal_dot));
+        }
+        Ok(())
+    }
+}
+
+/// Smallest reflectance divided out (as in the spatial filter).
+const MIN_ALBEDO: f32 = 1e-3;
+
+/// The centre frame `window[center]` with its neighbours' lighting averaged in (see the
+/// [module docs](self)); `window` holds consecutive frames, at most `radius` on each side of the
+/// centre (fewer at the ends of a sequence). Returns the image and the features to give the
+/// spatial filter (the centre's, with the variance of the weighted mean). Panics if the frames'
+/// sizes differ (a programming error).
+pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (Image, Features) {
+    let fk = window[center];
+    let (w, h) = (fk.image.width, fk.image.height);
+    assert!(
+        window.iter().all(|f| (f.image.width, f.image.height, f.features.width, f.features.height) == (w, h, w, h)),
+        "frames of different sizes"
+    );
+    let n = (w * h) as usize;
+    let albedo = |f: &SequenceFrame, i: usize| f.features.albedo[i].max(Vec3::splat(MIN_ALBEDO));
+    let neighbours: Vec<(&SequenceFrame, f32)> = window
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != center && j.abs_diff(center) <= p.radius)
+        .map(|(j, &f)| (f, 1.0 - j.abs_diff(center) as f32 / (p.radius as f32 + 1.0)))
+        .collect();
+    let mut pixels = vec![Vec3::ZERO; n];
+    let mut variance = vec![0.0f32; n];
+    let origin = fk.camera.origin();
+    pixels.par_chunks_mut(w as usize).zip(variance.par_chunks_mut(w as usize)).enumerate().for_each(
+        |(y, (row, row_var))| {
+            for x in 0..w as usize {
+                let i = y * w as usize + x;
+                let a = albedo(fk, i);
+                let la = luminance(a).max(MIN_ALBEDO);
+                // weighted sums of demodulated irradiance, of weight^2 * demodulated variance
+                let mut sum = fk.image.pixels[i] / a;
+                let mut var = fk.features.variance[i] / (la * la);
+                let mut wsum = 1.0f32;
+                let depth = fk.features.depth[i];
+                let normal = fk.features.normal[i];
+                let dir = fk.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
+                let point = origin + dir * depth;
+                for &(fj, tent) in &neighbours {
+                    let Some(q) = fj.camera.project(point, w, h) else { continue };
+                    let dist = (point - fj.camera.origin()).length();
+                    let (qx, qy) = (q.x - 0.5, q.y - 0.5);
+                    let (x0, y0) = (qx.floor(), qy.floor());
+                    let (fx, fy) = (qx - x0, qy - y0);
+                    let taps = [
+                        (0, 0, (1.0 - fx) * (1.0 - fy)),
+                        (1, 0, fx * (1.0 - fy)),
+                        (0, 1, (1.0 - fx) * fy),
+                        (1, 1, fx * fy),
+                    ];
+                    for (dx, dy, bilinear) in taps {
+                        let (tx, ty) = (x0 as i64 + dx, y0 as i64 + dy);
+                        if tx < 0 || ty < 0 || tx >= w as i64 || ty >= h as i64 || bilinear <= 0.0 {
+                            continue;
+                        }
+                        let t = (ty as u32 * w + tx as u32) as usize;
+                        if (fj.features.depth[t] - dist).abs() > p.depth_tolerance * dist
+                            || fj.features.normal[t].dot(normal) < p.min_normal_dot
+                        {
+                            continue;
+                        }
+                        let wt = tent * bilinear;
+                        let aj = albedo(fj, t);
+                        let laj = luminance(aj).max(MIN_ALBEDO);
+                        sum += fj.image.pixels[t] / aj * wt;
+                        var += fj.features.variance[t] / (laj * laj) * wt * wt;
+                        wsum += wt;
+                    }
+                }
+                row[x] = sum / wsum * a;
+                row_var[x] = var / (wsum * wsum) * la * la;
+            }
+        },
+    );
+    let features = Features { variance, ..fk.features.clone() };
+    (Image { width: w, height: h, pixels }, features)
+}
+
+#[cfg(test)]
+#[path = "temporal_tests.rs"]
+mod tests;

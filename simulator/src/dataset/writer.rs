@@ -260,14 +260,13 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
                 img
             }
             None => {
-                let (renders, denoise_time) = (seq.renders, seq.denoise_time);
+                let denoise_time = seq.denoise_time;
                 let mut img = seq.frame(k)?;
                 round_to_f16(&mut img);
                 FrameCache::store(&path, &img)?;
                 summary.render_time += t.elapsed();
                 summary.denoise_time += seq.denoise_time - denoise_time;
                 summary.frames_rendered += 1;
-                summary.window_renders += seq.renders - renders - 1;
                 count_render(&mut summary)?;
                 img
             }
@@ -308,6 +307,8 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
         }
         summary.exposure_time += t.elapsed();
     }
+    // every frame this run made was rendered once; what else the window rendered came from the cache
+    summary.window_renders = seq.renders.saturating_sub(summary.frames_rendered);
     stack.finish().map_err(|e| DatasetError::stage("exposure", e))?;
     let t = Instant::now();
     let written = sink.finish().map_err(|e| DatasetError::io(&events_path, "cannot complete", e))?;

@@ -75,7 +75,15 @@ pub fn denoise(img: &Image, features: &Features, p: &DenoiseParams) -> Image {
         "features of a different render"
     );
     let albedo: Vec<Vec3> = features.albedo.iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
-    let mut irr: Vec<Vec3> = img.pixels.iter().zip(&albedo).map(|(c, a)| *c / *a).collect();
+    // only reflected light is filtered: what the camera sees directly (emitters, the sky) is
+    // taken out first and added back unfiltered
+    let mut irr: Vec<Vec3> = img
+        .pixels
+        .iter()
+        .zip(&features.emission)
+        .zip(&albedo)
+        .map(|((c, e), a)| (*c - *e).max(Vec3::ZERO) / *a)
+        .collect();
     let mut var: Vec<f32> =
         features.variance.iter().zip(&albedo).map(|(v, a)| v / luminance(*a).max(MIN_ALBEDO).powi(2)).collect();
     let grad = depth_gradients(&features.depth, w, h);
@@ -125,7 +133,8 @@ pub fn denoise(img: &Image, features: &Features, p: &DenoiseParams) -> Image {
         std::mem::swap(&mut irr, &mut next_irr);
         std::mem::swap(&mut var, &mut next_var);
     }
-    Image { width: img.width, height: img.height, pixels: irr.iter().zip(&albedo).map(|(c, a)| *c * *a).collect() }
+    let pixels = irr.iter().zip(&features.emission).zip(&albedo).map(|((c, e), a)| *c * *a + *e).collect();
+    Image { width: img.width, height: img.height, pixels }
 }
 
 /// Index `c + (tap - 2) * step` if it lies in `0..n`.
@@ -222,6 +231,7 @@ mod tests {
             normal: vec![Vec3::Z; n],
             depth: vec![z; n],
             variance: vec![variance; n],
+            emission: vec![Vec3::ZERO; n],
         }
     }
 

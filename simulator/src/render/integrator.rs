@@ -112,6 +112,7 @@ impl<'a> Renderer<'a> {
             f.normal[i] = pf.normal;
             f.depth[i] = pf.depth;
             f.variance[i] = pf.variance;
+            f.emission[i] = pf.emission;
         }
         (img, f)
     }
@@ -128,13 +129,14 @@ impl<'a> Renderer<'a> {
         let key = pixel_key(s.seed, pixel_index, s.frame);
         let mut sum = Vec3::ZERO;
         let (mut lum_sum, mut lum_sq) = (0.0f64, 0.0f64);
-        let mut acc = PixelFeatures { albedo: Vec3::ZERO, normal: Vec3::ZERO, depth: 0.0, variance: 0.0 };
+        let mut acc =
+            PixelFeatures { albedo: Vec3::ZERO, normal: Vec3::ZERO, depth: 0.0, variance: 0.0, emission: Vec3::ZERO };
         for i in 0..s.spp {
             let mut rng = SampleStream::new(s.sampler, key, i);
             let c = rng.next_4d();
             let film = Vec2::new(x as f32 + c[0], y as f32 + c[1]);
             let dir = s.camera.direction(film, s.width, s.height);
-            let mut first = FirstHit { albedo: Vec3::ONE, normal: -dir, depth: MISS_DEPTH };
+            let mut first = FirstHit { albedo: Vec3::ONE, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
             let l = self.li_first(origin, dir, s, &mut rng, &mut first);
             acc.albedo += first.albedo;
             acc.normal += first.normal;
@@ -142,6 +144,7 @@ impl<'a> Renderer<'a> {
             // a non-finite sample would poison the pixel: drop it (counts as black)
             if l.is_finite() {
                 sum += l;
+                acc.emission += first.emission;
                 let y = luminance(l) as f64;
                 lum_sum += y;
                 lum_sq += y * y;
@@ -152,7 +155,14 @@ impl<'a> Renderer<'a> {
         // variance of the pixel mean: the samples' variance over n
         let var = ((lum_sq / n as f64 - mean_lum * mean_lum).max(0.0) / n as f64) as f32;
         let normal = acc.normal.try_normalize().unwrap_or(Vec3::Z);
-        (sum / n, PixelFeatures { albedo: acc.albedo / n, normal, depth: acc.depth / n, variance: var })
+        let features = PixelFeatures {
+            albedo: acc.albedo / n,
+            normal,
+            depth: acc.depth / n,
+            variance: var,
+            emission: acc.emission / n,
+        };
+        (sum / n, features)
     }
 
     /// Interpolated surface data at a hit, with the shading frame facing `-dir`.
@@ -194,7 +204,7 @@ impl<'a> Renderer<'a> {
 
     /// Radiance arriving at `origin` from direction `dir` (one path sample).
     pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
-        let mut first = FirstHit { albedo: Vec3::ONE, normal: -dir, depth: MISS_DEPTH };
+        let mut first = FirstHit { albedo: Vec3::ONE, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
         self.li_first(origin, dir, s, rng, &mut first)
     }
 
@@ -224,6 +234,9 @@ impl<'a> Renderer<'a> {
             let Some(hit) = hit else {
                 // escaped: add the environment, MIS-weighted against environment sampling
                 let le = scene.environment.radiance(d);
+                if depth == 1 {
+                    first.emission = le;
+                }
                 if le != Vec3::ZERO {
                     let w = match prev_bsdf_pdf {
                         None => 1.0,
@@ -241,6 +254,9 @@ impl<'a> Renderer<'a> {
 
             // add emission at the hit, MIS-weighted against area-light sampling
             let le = emitted(scene, hit.prim, hit.bary, -d);
+            if depth == 1 {
+                first.emission = le;
+            }
             if le != Vec3::ZERO {
                 let w = match prev_bsdf_pdf {
                     None => 1.0,
@@ -331,6 +347,8 @@ struct FirstHit {
     normal: Vec3,
     /// Distance along the ray ([`MISS_DEPTH`] for escaped rays).
     depth: f32,
+    /// Radiance the camera ray sees directly: the hit's emission or, escaped, the environment.
+    emission: Vec3,
 }
 
 /// One pixel's features: the means over its samples.
@@ -339,6 +357,7 @@ struct PixelFeatures {
     normal: Vec3,
     depth: f32,
     variance: f32,
+    emission: Vec3,
 }
 
 /// Per-pixel first-hit buffers of one render (row-major like [`Image`]), the guides of
@@ -357,10 +376,13 @@ pub struct Features {
     pub depth: Vec<f32>,
     /// Variance of the pixel's mean luminance (sample variance over spp).
     pub variance: Vec<f32>,
+    /// Mean radiance the camera rays see directly (emitters, the environment): not reflected
+    /// light, so the filters leave it alone (a lamp's pixels must not bleed into the ceiling).
+    pub emission: Vec<Vec3>,
 }
 
 impl Features {
-    /// Empty buffers (albedo 1, normal +z, depth 0, variance 0).
+    /// Empty buffers (albedo 1, normal +z, depth 0, variance 0, no emission).
     pub fn new(width: u32, height: u32) -> Features {
         let n = (width * height) as usize;
         Features {
@@ -370,6 +392,7 @@ impl Features {
             normal: vec![Vec3::Z; n],
             depth: vec![0.0; n],
             variance: vec![0.0; n],
+            emission: vec![Vec3::ZERO; n],
         }
     }
 }

@@ -7,8 +7,11 @@
 //! distance) is projected into each neighbour within `radius` frames with the neighbour's own
 //! camera; the neighbour's demodulated irradiance (image over first-hit reflectance) is read
 //! bilinearly from the taps whose hit distance (within `depth_tolerance`, relative) and normal
-//! (dot at least `min_normal_dot`) show the same surface. Neighbours weigh `1 - |dk| / (radius + 1)`
+//! (dot at least `min_normal_dot`) show the same surface (and both or neither see an emitter).
+//! Neighbours weigh `1 - |dk| / (radius + 1)`
 //! (a tent, so the window has no lag: a static scene's lighting is not delayed), the centre 1.
+//! Only reflected light is averaged: what the camera rays see directly (emitters, the sky;
+//! [`Features::emission`]) is taken out first and the centre's own added back.
 //! The result is remodulated with the centre frame's reflectance, so texture stays sharp; the
 //! variance guide of the spatial filter becomes the variance of the weighted mean.
 //!
@@ -111,7 +114,8 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
                 let a = albedo(fk, i);
                 let la = luminance(a).max(MIN_ALBEDO);
                 // weighted sums of demodulated irradiance, of weight^2 * demodulated variance
-                let mut sum = fk.image.pixels[i] / a;
+                let emission = fk.features.emission[i];
+                let mut sum = (fk.image.pixels[i] - emission).max(Vec3::ZERO) / a;
                 let mut var = fk.features.variance[i] / (la * la);
                 let mut wsum = 1.0f32;
                 let depth = fk.features.depth[i];
@@ -138,18 +142,19 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
                         let t = (ty as u32 * w + tx as u32) as usize;
                         if (fj.features.depth[t] - dist).abs() > p.depth_tolerance * dist
                             || fj.features.normal[t].dot(normal) < p.min_normal_dot
+                            || (fj.features.emission[t] == Vec3::ZERO) != (emission == Vec3::ZERO)
                         {
                             continue;
                         }
                         let wt = tent * bilinear;
                         let aj = albedo(fj, t);
                         let laj = luminance(aj).max(MIN_ALBEDO);
-                        sum += fj.image.pixels[t] / aj * wt;
+                        sum += (fj.image.pixels[t] - fj.features.emission[t]).max(Vec3::ZERO) / aj * wt;
                         var += fj.features.variance[t] / (laj * laj) * wt * wt;
                         wsum += wt;
                     }
                 }
-                row[x] = sum / wsum * a;
+                row[x] = sum / wsum * a + emission;
                 row_var[x] = var / (wsum * wsum) * la * la;
             }
         },

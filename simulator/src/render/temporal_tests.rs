@@ -17,7 +17,8 @@ fn irradiance(p: Vec3) -> Vec3 {
     Vec3::new(1.0, 0.9, 0.8) * stripe * (1.0 + 0.1 * p.y)
 }
 
-/// Frame `k` of a camera sliding sideways (0.1 per frame, about a pixel) in front of the
+/// Frame `k` of a camera sliding sideways (a lamp strip lies in the plane: its light must not
+/// bleed into its surroundings) (0.1 per frame, about a pixel) in front of the
 /// plane, with relative noise `noise` (independent per pixel and frame).
 fn frame(k: i32, noise: f32, rng: &mut Rng) -> SequenceFrame {
     let origin = Vec3::new(0.1 * k as f32, 0.2, 5.0);
@@ -33,6 +34,12 @@ fn frame(k: i32, noise: f32, rng: &mut Rng) -> SequenceFrame {
             let n = 1.0 + noise * (2.0 * rng.next_f32() - 1.0) * 3f32.sqrt();
             image.pixels[i] = texture(p) * irradiance(p) * n;
             features.albedo[i] = texture(p);
+            if (p.x + 0.5).abs() < 0.2 {
+                // a lamp in the plane: seen directly, reported as emission with albedo 1
+                image.pixels[i] = Vec3::splat(20.0);
+                features.emission[i] = Vec3::splat(20.0);
+                features.albedo[i] = Vec3::ONE;
+            }
             features.normal[i] = Vec3::Z;
             features.depth[i] = t;
             features.variance[i] = (luminance(image.pixels[i]) * noise).powi(2);

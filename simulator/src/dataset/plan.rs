@@ -26,8 +26,9 @@ use crate::scene::{self, description, Scene};
 use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 
 /// Bumped whenever the renderer or the pipeline changes what a frame or file contains, so that
-/// stale caches are never reused.
-pub const PIPELINE_VERSION: u32 = 1;
+/// stale caches are never reused. 2: the filters leave directly seen light alone
+/// (`Features::emission`), which changes every denoised frame.
+pub const PIPELINE_VERSION: u32 = 2;
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]

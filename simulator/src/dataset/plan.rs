@@ -27,8 +27,10 @@ use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 
 /// Bumped whenever the renderer or the pipeline changes what a frame or file contains, so that
 /// stale caches are never reused. 2: the filters leave directly seen light alone
-/// (`Features::emission`), which changes every denoised frame.
-pub const PIPELINE_VERSION: u32 = 2;
+/// (`Features::emission`), which changes every denoised frame. 3: the filters smooth
+/// `Features::irradiance` (a per-sample ratio) and remodulate with reflectance from
+/// `feature_spp` camera rays.
+pub const PIPELINE_VERSION: u32 = 3;
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]
@@ -82,6 +84,9 @@ struct RenderIdentity<'a> {
     /// Only written when it shapes the frames (denoising on, radius > 0).
     #[serde(skip_serializing_if = "is_zero")]
     temporal_radius: u32,
+    /// Only written when it shapes the frames (denoising on, more rays than `spp`).
+    #[serde(skip_serializing_if = "is_zero")]
+    feature_spp: u32,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -235,6 +240,7 @@ impl Plan {
                 light_samples: config.light_samples,
                 denoise: config.denoise,
                 temporal_radius: if config.denoise { config.temporal_radius } else { 0 },
+                feature_spp: if config.denoise && config.feature_spp > config.spp { config.feature_spp } else { 0 },
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })
@@ -309,6 +315,9 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
             "dataset.temporal_radius",
             format!("{} must be at most {} frames", d.temporal_radius, crate::render::temporal::MAX_RADIUS),
         );
+    }
+    if d.feature_spp > 4096 {
+        return bad("dataset.feature_spp", format!("{} must be at most 4096 camera rays per pixel", d.feature_spp));
     }
     if d.light_samples == 0 || d.light_samples > 64 {
         return bad("dataset.light_samples", format!("{} must be 1..=64", d.light_samples));

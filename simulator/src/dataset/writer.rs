@@ -162,6 +162,7 @@ pub fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> Rende
     s.sampler = c.sampler;
     s.clamp = c.clamp;
     s.light_samples = c.light_samples;
+    s.feature_spp = c.feature_spp;
     if sharp {
         s.spp = plan.sharp_spp;
         // sharp renders draw from their own streams (far from any sequence frame index)

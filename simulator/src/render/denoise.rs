@@ -4,8 +4,10 @@
 //! Why: at a few samples per pixel, path-tracing noise changes from frame to frame as the camera
 //! moves, and an event camera sees those changes as contrast: they fire false events. Filtering
 //! each frame removes most of that noise while the guides keep what is real:
-//! - the image is *demodulated* first (divided by the first hit's reflectance), so texture is
-//!   never blurred, only the lighting, and remodulated at the end;
+//! - the filter works on *demodulated* light ([`Features::irradiance`]: reflected light over the
+//!   first hits' reflectance, formed per sample by the renderer), so texture is never blurred,
+//!   only the lighting, and remodulates it at the end with [`Features::albedo`] (averaged over
+//!   more camera rays than are shaded when `feature_spp > spp`);
 //! - taps across a depth discontinuity, a crease (normal) or a lighting edge larger than the
 //!   local noise (luminance against the pixel's estimated standard deviation) get no weight.
 //!
@@ -77,13 +79,7 @@ pub fn denoise(img: &Image, features: &Features, p: &DenoiseParams) -> Image {
     let albedo: Vec<Vec3> = features.albedo.iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
     // only reflected light is filtered: what the camera sees directly (emitters, the sky) is
     // taken out first and added back unfiltered
-    let mut irr: Vec<Vec3> = img
-        .pixels
-        .iter()
-        .zip(&features.emission)
-        .zip(&albedo)
-        .map(|((c, e), a)| (*c - *e).max(Vec3::ZERO) / *a)
-        .collect();
+    let mut irr: Vec<Vec3> = features.irradiance.clone();
     let mut var: Vec<f32> =
         features.variance.iter().zip(&albedo).map(|(v, a)| v / luminance(*a).max(MIN_ALBEDO).powi(2)).collect();
     let grad = depth_gradients(&features.depth, w, h);
@@ -133,7 +129,7 @@ pub fn denoise(img: &Image, features: &Features, p: &DenoiseParams) -> Image {
         std::mem::swap(&mut irr, &mut next_irr);
         std::mem::swap(&mut var, &mut next_var);
     }
-    let pixels = irr.iter().zip(&features.emission).zip(&albedo).map(|((c, e), a)| *c * *a + *e).collect();
+    let pixels = irr.iter().zip(&features.emission).zip(&features.albedo).map(|((c, e), a)| *c * *a + *e).collect();
     Image { width: img.width, height: img.height, pixels }
 }
 
@@ -232,7 +228,15 @@ mod tests {
             depth: vec![z; n],
             variance: vec![variance; n],
             emission: vec![Vec3::ZERO; n],
+            irradiance: vec![Vec3::ZERO; n],
         }
+    }
+
+    /// [`denoise`] with the features' irradiance demodulated from `img` per pixel.
+    fn run(img: &Image, f: &Features, p: &DenoiseParams) -> Image {
+        let mut f = f.clone();
+        f.demodulate(img);
+        denoise(img, &f, p)
     }
 
     /// `irradiance * albedo` plus Gaussian-ish noise of standard deviation `sigma` (relative).
@@ -263,7 +267,7 @@ mod tests {
             *a = if (i % 40 / 3 + i / 40 / 3) % 2 == 0 { Vec3::new(0.8, 0.2, 0.1) } else { Vec3::splat(0.05) };
         }
         let img = Image { width: w, height: h, pixels: f.albedo.iter().map(|a| *a * 0.7).collect() };
-        let out = denoise(&img, &f, &DenoiseParams::default());
+        let out = run(&img, &f, &DenoiseParams::default());
         for (a, b) in img.pixels.iter().zip(&out.pixels) {
             assert!((*a - *b).abs().max_element() < 1e-5, "{a} -> {b}");
         }
@@ -275,7 +279,7 @@ mod tests {
         let sigma = 0.3;
         let f = plane(w, h, 2.0, Vec3::splat(0.5), (0.5f32 * sigma).powi(2));
         let img = noisy(&f, |_| 1.0, sigma, 1);
-        let out = denoise(&img, &f, &DenoiseParams::default());
+        let out = run(&img, &f, &DenoiseParams::default());
         let (m0, v0) = mean_var(img.pixels.iter().map(|p| p.x));
         let (m1, v1) = mean_var(out.pixels.iter().map(|p| p.x));
         assert!((m1 - m0).abs() < 0.01 * m0, "mean {m0} -> {m1}");
@@ -299,7 +303,7 @@ mod tests {
             }
             let right = |i: usize| i % w as usize >= (w / 2) as usize;
             let img = noisy(&f, |i| if right(i) { 0.05 } else { 1.0 }, 0.02, 2);
-            let out = denoise(&img, &f, &DenoiseParams { sigma_luminance: 1e6, ..DenoiseParams::default() });
+            let out = run(&img, &f, &DenoiseParams { sigma_luminance: 1e6, ..DenoiseParams::default() });
             // the columns next to the edge keep their own side's level (within the noise)
             for y in 0..h as usize {
                 let (l, r) = (y * w as usize + (w / 2 - 1) as usize, y * w as usize + (w / 2) as usize);
@@ -317,7 +321,7 @@ mod tests {
         let f = plane(w, h, 2.0, Vec3::ONE, sigma * sigma);
         let right = |i: usize| i % w as usize >= (w / 2) as usize;
         let img = noisy(&f, |i| if right(i) { 0.2 } else { 1.0 }, sigma, 3);
-        let out = denoise(&img, &f, &DenoiseParams::default());
+        let out = run(&img, &f, &DenoiseParams::default());
         for y in 0..h as usize {
             let (l, r) = (y * w as usize + (w / 2 - 1) as usize, y * w as usize + (w / 2) as usize);
             assert!(out.pixels[l].x > 0.85 && out.pixels[r].x < 0.3, "row {y}: {} | {}", out.pixels[l], out.pixels[r]);
@@ -337,7 +341,7 @@ mod tests {
                 .num_threads(n)
                 .build()
                 .unwrap()
-                .install(|| denoise(&img, &f, &DenoiseParams::default()))
+                .install(|| run(&img, &f, &DenoiseParams::default()))
         };
         assert_eq!(run(1), run(3));
     }

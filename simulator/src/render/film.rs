@@ -58,6 +58,12 @@ pub struct RenderSettings {
     pub clamp: f32,
     /// Light samples per path vertex (>= 1; splitting: less direct-light noise per primary ray).
     pub light_samples: u32,
+    /// Camera rays per pixel for the first-hit buffers of
+    /// [`super::integrator::Renderer::render_with_features`] (reflectance, emission, depth,
+    /// normal); the first `spp` of them are the shaded paths, the rest stop at their first hit.
+    /// Values below `spp` mean `spp`. Cheap (one ray each) and what keeps texture and edge
+    /// detail of filtered frames steady while the camera moves.
+    pub feature_spp: u32,
 }
 
 impl RenderSettings {
@@ -76,6 +82,7 @@ impl RenderSettings {
             sampler: SamplerKind::default(),
             clamp: 0.0,
             light_samples: 1,
+            feature_spp: 0,
         }
     }
 }

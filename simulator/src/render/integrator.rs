@@ -97,12 +97,14 @@ impl<'a> Renderer<'a> {
     }
 
     /// Render one image and the first-hit feature buffers a denoiser is guided by
-    /// ([`crate::render::denoise`]); the image is the one [`Renderer::render`] returns.
+    /// ([`crate::render::denoise`]); the image is the one [`Renderer::render`] returns. The
+    /// buffers average `max(spp, feature_spp)` camera rays per pixel (see [`Features`]).
     pub fn render_with_features(&self, settings: &RenderSettings) -> (Image, Features) {
         let (w, h) = (settings.width, settings.height);
+        let feature_spp = settings.feature_spp.max(settings.spp);
         let rows: Vec<Vec<(Vec3, PixelFeatures)>> = (0..h)
             .into_par_iter()
-            .map(|y| (0..w).map(|x| self.pixel_with_features(settings, x, y)).collect())
+            .map(|y| (0..w).map(|x| self.pixel_with_features(settings, x, y, feature_spp)).collect())
             .collect();
         let mut img = Image::new(w, h);
         let mut f = Features::new(w, h);
@@ -113,56 +115,111 @@ impl<'a> Renderer<'a> {
             f.depth[i] = pf.depth;
             f.variance[i] = pf.variance;
             f.emission[i] = pf.emission;
+            f.irradiance[i] = pf.irradiance;
         }
         (img, f)
     }
 
     /// Mean of `spp` box-filtered samples of pixel (x, y).
     pub fn pixel(&self, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
-        self.pixel_with_features(s, x, y).0
+        self.pixel_with_features(s, x, y, 0).0
     }
 
-    /// [`Renderer::pixel`] and the pixel's first-hit features.
-    fn pixel_with_features(&self, s: &RenderSettings, x: u32, y: u32) -> (Vec3, PixelFeatures) {
+    /// [`Renderer::pixel`] and the pixel's first-hit features over `max(spp, feature_spp)`
+    /// camera rays (the first `spp` shaded).
+    fn pixel_with_features(&self, s: &RenderSettings, x: u32, y: u32, feature_spp: u32) -> (Vec3, PixelFeatures) {
         let pixel_index = y as u64 * s.width as u64 + x as u64;
         let origin = s.camera.origin();
         let key = pixel_key(s.seed, pixel_index, s.frame);
         let mut sum = Vec3::ZERO;
-        let (mut lum_sum, mut lum_sq) = (0.0f64, 0.0f64);
-        let mut acc =
-            PixelFeatures { albedo: Vec3::ZERO, normal: Vec3::ZERO, depth: 0.0, variance: 0.0, emission: Vec3::ZERO };
-        for i in 0..s.spp {
+        // sums over the shaded samples: reflected light (radiance minus what the camera ray
+        // sees directly), its luminance and square, the first-hit reflectance luminance and
+        // square, and their product (for the variance of the ratio estimate)
+        let mut reflected = Vec3::ZERO;
+        let mut refl_albedo = Vec3::ZERO;
+        let (mut r1, mut r2, mut a1, mut a2, mut ra) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        let mut shaded = 0u32;
+        let mut acc = PixelFeatures {
+            albedo: Vec3::ZERO,
+            normal: Vec3::ZERO,
+            depth: 0.0,
+            variance: 0.0,
+            emission: Vec3::ZERO,
+            irradiance: Vec3::ZERO,
+        };
+        let rays = s.spp.max(feature_spp);
+        let mut counted = 0u32;
+        for i in 0..rays {
             let mut rng = SampleStream::new(s.sampler, key, i);
             let c = rng.next_4d();
             let film = Vec2::new(x as f32 + c[0], y as f32 + c[1]);
             let dir = s.camera.direction(film, s.width, s.height);
-            let mut first = FirstHit { albedo: Vec3::ONE, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
-            let l = self.li_first(origin, dir, s, &mut rng, &mut first);
+            let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
+            let l = if i < s.spp {
+                Some(self.li_first(origin, dir, s, &mut rng, &mut first))
+            } else {
+                self.first_hit(origin, dir, s, &mut first);
+                None
+            };
             acc.albedo += first.albedo;
             acc.normal += first.normal;
             acc.depth += first.depth;
             // a non-finite sample would poison the pixel: drop it (counts as black)
-            if l.is_finite() {
-                sum += l;
-                acc.emission += first.emission;
-                let y = luminance(l) as f64;
-                lum_sum += y;
-                lum_sq += y * y;
+            match l {
+                Some(l) if !l.is_finite() => continue,
+                Some(l) => {
+                    sum += l;
+                    let refl = (l - first.emission).max(Vec3::ZERO);
+                    reflected += refl;
+                    refl_albedo += first.albedo;
+                    let (r, a) = (luminance(refl) as f64, luminance(first.albedo) as f64);
+                    (r1, r2, a1, a2, ra) = (r1 + r, r2 + r * r, a1 + a, a2 + a * a, ra + r * a);
+                    shaded += 1;
+                }
+                None => {}
             }
+            acc.emission += first.emission;
+            counted += 1;
         }
         let n = s.spp.max(1) as f32;
-        let mean_lum = lum_sum / n as f64;
-        // variance of the pixel mean: the samples' variance over n
-        let var = ((lum_sq / n as f64 - mean_lum * mean_lum).max(0.0) / n as f64) as f32;
-        let normal = acc.normal.try_normalize().unwrap_or(Vec3::Z);
+        let rays = rays.max(1) as f32;
+        let albedo = acc.albedo / rays;
+        // reflected light per unit reflectance: a ratio over the same samples, so that texture
+        // detail inside the pixel (which samples happened to land on) cancels out
+        let irradiance = reflected / refl_albedo.max(Vec3::splat(MIN_REFLECTANCE));
+        // variance of the pixel's reflected light `albedo * irradiance`: the ratio estimate's
+        // (delta method) variance, scaled by the reflectance luminance
+        let m = shaded.max(1) as f64;
+        let e = luminance(irradiance) as f64;
+        let resid2 = (r2 - 2.0 * e * ra + e * e * a2).max(0.0);
+        let a_mean = (a1 / m).max(MIN_REFLECTANCE as f64);
+        let la = luminance(albedo) as f64;
+        let variance = if shaded > 1 { (resid2 / (m - 1.0) / m / (a_mean * a_mean) * la * la) as f32 } else { 0.0 };
         let features = PixelFeatures {
-            albedo: acc.albedo / n,
-            normal,
-            depth: acc.depth / n,
-            variance: var,
-            emission: acc.emission / n,
+            albedo,
+            normal: acc.normal.try_normalize().unwrap_or(Vec3::Z),
+            depth: acc.depth / rays,
+            variance,
+            emission: acc.emission / counted.max(1) as f32,
+            irradiance,
         };
         (sum / n, features)
+    }
+
+    /// Record what the camera ray `dir` hits first in `first` (as [`Renderer::li_first`] does,
+    /// without shading).
+    fn first_hit(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, first: &mut FirstHit) {
+        let Some(hit) = self.accel.intersect(origin, dir, 0.0, f32::INFINITY) else {
+            first.emission = self.scene.environment.radiance(dir);
+            return;
+        };
+        let sh = self.surface(&hit, origin, dir);
+        first.normal = sh.frame.n;
+        first.depth = hit.t;
+        first.emission = emitted(self.scene, hit.prim, hit.bary, -dir);
+        if s.max_depth > 1 {
+            first.albedo = self.bsdf(hit.prim, sh.uv).albedo_hint();
+        }
     }
 
     /// Interpolated surface data at a hit, with the shading frame facing `-dir`.
@@ -204,7 +261,7 @@ impl<'a> Renderer<'a> {
 
     /// Radiance arriving at `origin` from direction `dir` (one path sample).
     pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
-        let mut first = FirstHit { albedo: Vec3::ONE, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
+        let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
         self.li_first(origin, dir, s, rng, &mut first)
     }
 
@@ -341,7 +398,8 @@ pub const MISS_DEPTH: f32 = 1e6;
 
 /// What a camera ray hit first.
 struct FirstHit {
-    /// Reflectance hint of the surface ([`Bsdf::albedo_hint`]); 1 for escaped rays and emitters.
+    /// Reflectance hint of the surface ([`Bsdf::albedo_hint`]); 0 for escaped rays (and at
+    /// `max_depth` 1, where nothing is reflected).
     albedo: Vec3,
     /// Shading normal facing the camera; `-dir` for escaped rays.
     normal: Vec3,
@@ -358,7 +416,11 @@ struct PixelFeatures {
     depth: f32,
     variance: f32,
     emission: Vec3,
+    irradiance: Vec3,
 }
+
+/// Smallest reflectance a pixel's reflected light is divided by.
+const MIN_REFLECTANCE: f32 = 1e-3;
 
 /// Per-pixel first-hit buffers of one render (row-major like [`Image`]), the guides of
 /// [`crate::render::denoise`].
@@ -368,21 +430,27 @@ pub struct Features {
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// Mean reflectance hint of the first hits (1 where rays escaped).
+    /// Mean reflectance hint of the first hits (0 where rays escaped).
     pub albedo: Vec<Vec3>,
     /// Normalised mean shading normal of the first hits.
     pub normal: Vec<Vec3>,
     /// Mean first-hit distance ([`MISS_DEPTH`] for escaped rays).
     pub depth: Vec<f32>,
-    /// Variance of the pixel's mean luminance (sample variance over spp).
+    /// Variance of the luminance of the pixel's reflected light `albedo * irradiance` (its
+    /// sampling error over the `spp` shaded samples).
     pub variance: Vec<f32>,
     /// Mean radiance the camera rays see directly (emitters, the environment): not reflected
     /// light, so the filters leave it alone (a lamp's pixels must not bleed into the ceiling).
     pub emission: Vec<Vec3>,
+    /// Reflected light per unit reflectance (demodulated): the shaded samples' radiance minus
+    /// their directly seen emission, summed, over the sum of their reflectances. The filters
+    /// smooth this and multiply it back by `albedo`; texture detail within a pixel does not
+    /// enter it.
+    pub irradiance: Vec<Vec3>,
 }
 
 impl Features {
-    /// Empty buffers (albedo 1, normal +z, depth 0, variance 0, no emission).
+    /// Empty buffers (albedo 1, normal +z, depth 0, variance 0, no emission, irradiance 0).
     pub fn new(width: u32, height: u32) -> Features {
         let n = (width * height) as usize;
         Features {
@@ -393,6 +461,16 @@ impl Features {
             depth: vec![0.0; n],
             variance: vec![0.0; n],
             emission: vec![Vec3::ZERO; n],
+            irradiance: vec![Vec3::ZERO; n],
+        }
+    }
+
+    /// Set `irradiance` from an image as `(pixel - emission) / albedo` per pixel (for images
+    /// made without the renderer's per-sample buffers, such as test images).
+    pub fn demodulate(&mut self, img: &Image) {
+        for (i, c) in img.pixels.iter().enumerate() {
+            self.irradiance[i] =
+                (*c - self.emission[i]).max(Vec3::ZERO) / self.albedo[i].max(Vec3::splat(MIN_REFLECTANCE));
         }
     }
 }

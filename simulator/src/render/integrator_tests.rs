@@ -185,3 +185,68 @@ fn several_light_samples_per_vertex_keep_the_expectation() {
     let img = r.render(&RenderSettings { width: 16, height: 12, spp: 64, ..st }, None);
     assert!((img.mean() - Vec3::splat(0.6)).abs().max_element() < 0.01, "{}", img.mean());
 }
+
+#[test]
+fn feature_rays_steady_the_reflectance_buffer_and_leave_image_and_lighting_alone() {
+    // a floor with a fine checker texture (several checks per pixel) under a point light
+    let mut mesh = TriangleMesh::default();
+    let s = 4.0;
+    quad(&mut mesh, [Vec3::new(-s, 0., -s), Vec3::new(-s, 0., s), Vec3::new(s, 0., s), Vec3::new(s, 0., -s)], 0);
+    for (uv, p) in mesh.uvs.iter_mut().zip(&mesh.positions) {
+        *uv = Vec2::new(p.x, p.z) * 40.0;
+    }
+    let dark = glam::Vec4::new(0.05, 0.05, 0.05, 1.0);
+    let light = glam::Vec4::new(0.9, 0.9, 0.9, 1.0);
+    let texture = crate::scene::Texture {
+        name: "checker".into(),
+        width: 2,
+        height: 2,
+        texels: vec![dark, light, light, dark],
+        wrap_u: Default::default(),
+        wrap_v: Default::default(),
+    };
+    let mut mat = lambert(1.0, 0.0);
+    mat.base_color_texture = Some(crate::scene::TextureRef { index: 0 });
+    let scene = Scene {
+        mesh,
+        materials: vec![mat],
+        textures: vec![texture],
+        lights: vec![PunctualLight::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0) }],
+        ..Scene::default()
+    };
+    let r = Renderer::new(&scene);
+    let mut st = settings(4, 2);
+    st.camera = Camera::look_at(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, -1e-3), Vec3::Z, 1.0);
+    let rms = |a: &[Vec3], b: &[Vec3]| {
+        (a.iter().zip(b).map(|(x, y)| (luminance(*x) - luminance(*y)).powi(2) as f64).sum::<f64>() / a.len() as f64)
+            .sqrt()
+    };
+    let mut spread = Vec::new();
+    for feature_spp in [0, 64] {
+        let with = |seed: u64| {
+            let st = RenderSettings { seed, feature_spp, ..st.clone() };
+            let (img, f) = r.render_with_features(&st);
+            assert_eq!(img, r.render(&st, None), "the image is the shaded samples' mean whatever feature_spp is");
+            (img, f)
+        };
+        let ((img1, f1), (_, f2)) = (with(1), with(2));
+        if feature_spp == 0 {
+            // the 4-sample image itself carries the texture's sampling noise
+            assert!(rms(&img1.pixels, &with(3).0.pixels) > 0.01);
+        } else {
+            // the shaded samples (and so the lighting estimate) do not depend on feature_spp
+            let base = RenderSettings { seed: 1, ..st.clone() };
+            assert_eq!(f1.irradiance, r.render_with_features(&base).1.irradiance);
+        }
+        spread.push(rms(&f1.albedo, &f2.albedo));
+        // remodulating gives the image back where all rays are shaded
+        if feature_spp == 0 {
+            for (i, p) in img1.pixels.iter().enumerate() {
+                let back = f1.irradiance[i] * f1.albedo[i] + f1.emission[i];
+                assert!((back - *p).abs().max_element() < 1e-4 * p.max_element().max(1e-3), "{back} vs {p}");
+            }
+        }
+    }
+    // 16x the rays: the reflectance buffer's seed-to-seed spread drops by about 4x
+    assert!(spread[1] * 2.5 < spread[0], "albedo spread {:?}", spread);
+}

@@ -5,7 +5,7 @@
 //!
 //! For every pixel of the centre frame, its first-hit point (camera ray times mean hit
 //! distance) is projected into each neighbour within `radius` frames with the neighbour's own
-//! camera; the neighbour's demodulated irradiance (image over first-hit reflectance) is read
+//! camera; the neighbour's demodulated irradiance ([`Features::irradiance`]) is read
 //! bilinearly from the taps whose hit distance (within `depth_tolerance`, relative) and normal
 //! (dot at least `min_normal_dot`) show the same surface (and both or neither see an emitter).
 //! Neighbours weigh `1 - |dk| / (radius + 1)`
@@ -62,8 +62,8 @@ impl Default for TemporalParams {
     }
 }
 
-/// Largest supported radius (a window of 33 frames held in memory).
-pub const MAX_RADIUS: usize = 16;
+/// Largest supported radius (a window of 65 frames held in memory).
+pub const MAX_RADIUS: usize = 32;
 
 impl TemporalParams {
     /// Check the settings; the error names the field and its allowed range.
@@ -106,16 +106,21 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
         .collect();
     let mut pixels = vec![Vec3::ZERO; n];
     let mut variance = vec![0.0f32; n];
+    let mut irradiance = vec![Vec3::ZERO; n];
     let origin = fk.camera.origin();
-    pixels.par_chunks_mut(w as usize).zip(variance.par_chunks_mut(w as usize)).enumerate().for_each(
-        |(y, (row, row_var))| {
+    pixels
+        .par_chunks_mut(w as usize)
+        .zip(variance.par_chunks_mut(w as usize))
+        .zip(irradiance.par_chunks_mut(w as usize))
+        .enumerate()
+        .for_each(|(y, ((row, row_var), row_irr))| {
             for x in 0..w as usize {
                 let i = y * w as usize + x;
                 let a = albedo(fk, i);
                 let la = luminance(a).max(MIN_ALBEDO);
                 // weighted sums of demodulated irradiance, of weight^2 * demodulated variance
                 let emission = fk.features.emission[i];
-                let mut sum = (fk.image.pixels[i] - emission).max(Vec3::ZERO) / a;
+                let mut sum = fk.features.irradiance[i];
                 let mut var = fk.features.variance[i] / (la * la);
                 let mut wsum = 1.0f32;
                 let depth = fk.features.depth[i];
@@ -147,19 +152,18 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
                             continue;
                         }
                         let wt = tent * bilinear;
-                        let aj = albedo(fj, t);
-                        let laj = luminance(aj).max(MIN_ALBEDO);
-                        sum += (fj.image.pixels[t] - fj.features.emission[t]).max(Vec3::ZERO) / aj * wt;
+                        let laj = luminance(albedo(fj, t)).max(MIN_ALBEDO);
+                        sum += fj.features.irradiance[t] * wt;
                         var += fj.features.variance[t] / (laj * laj) * wt * wt;
                         wsum += wt;
                     }
                 }
-                row[x] = sum / wsum * a + emission;
+                row_irr[x] = sum / wsum;
+                row[x] = row_irr[x] * fk.features.albedo[i] + emission;
                 row_var[x] = var / (wsum * wsum) * la * la;
             }
-        },
-    );
-    let features = Features { variance, ..fk.features.clone() };
+        });
+    let features = Features { variance, irradiance, ..fk.features.clone() };
     (Image { width: w, height: h, pixels }, features)
 }
 

@@ -45,6 +45,7 @@ fn frame(k: i32, noise: f32, rng: &mut Rng) -> SequenceFrame {
             features.variance[i] = (luminance(image.pixels[i]) * noise).powi(2);
         }
     }
+    features.demodulate(&image);
     SequenceFrame { camera, image, features }
 }
 
@@ -168,8 +169,8 @@ fn same_bytes_for_any_thread_count() {
 fn bad_settings_name_the_field() {
     let ok = TemporalParams::default();
     assert!(ok.validate().is_ok());
-    let e = TemporalParams { radius: 17, ..ok }.validate().unwrap_err();
-    assert!(e.contains("radius") && e.contains("16"), "{e}");
+    let e = TemporalParams { radius: 33, ..ok }.validate().unwrap_err();
+    assert!(e.contains("radius") && e.contains("32"), "{e}");
     let e = TemporalParams { depth_tolerance: f32::NAN, ..ok }.validate().unwrap_err();
     assert!(e.contains("depth_tolerance"), "{e}");
     let e = TemporalParams { min_normal_dot: 2.0, ..ok }.validate().unwrap_err();

@@ -78,6 +78,10 @@ pub struct OverrideArgs {
     /// before denoising (0 = spatial filter only).
     #[arg(long)]
     pub temporal_radius: Option<u32>,
+    /// Override [dataset] feature_spp: camera rays per pixel for the filters' guide buffers
+    /// (texture, edges; up to spp = spp).
+    #[arg(long)]
+    pub feature_spp: Option<u32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -113,6 +117,7 @@ impl OverrideArgs {
             light_samples: self.light_samples,
             denoise: self.denoise,
             temporal_radius: self.temporal_radius,
+            feature_spp: self.feature_spp,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,

@@ -179,6 +179,7 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         sampler: args.sampler,
         clamp: args.clamp,
         light_samples: 1,
+        feature_spp: 0,
     })
 }
 

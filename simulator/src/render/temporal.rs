@@ -114,22 +114,33 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
         .zip(irradiance.par_chunks_mut(w as usize))
         .enumerate()
         .for_each(|(y, ((row, row_var), row_irr))| {
-            for x in 0..w as usize {
-                let i = y * w as usize + x;
-                let a = albedo(fk, i);
-                let la = luminance(a).max(MIN_ALBEDO);
-                // weighted sums of demodulated irradiance, of weight^2 * demodulated variance
-                let emission = fk.features.emission[i];
-                let mut sum = fk.features.irradiance[i];
-                let mut var = fk.features.variance[i] / (la * la);
-                let mut wsum = 1.0f32;
-                let depth = fk.features.depth[i];
-                let normal = fk.features.normal[i];
-                let dir = fk.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
-                let point = origin + dir * depth;
-                for &(fj, tent) in &neighbours {
-                    let Some(q) = fj.camera.project(point, w, h) else { continue };
-                    let dist = (point - fj.camera.origin()).length();
+            // the row's centre pixels: first-hit point, weighted sums of demodulated irradiance
+            // and of weight^2 * demodulated variance, and the weight sum
+            let row_start = y * w as usize;
+            let centre: Vec<Vec3> = (0..w as usize)
+                .map(|x| {
+                    let dir = fk.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
+                    origin + dir * fk.features.depth[row_start + x]
+                })
+                .collect();
+            let mut sums: Vec<(Vec3, f32, f32)> = (0..w as usize)
+                .map(|x| {
+                    let i = row_start + x;
+                    let la = luminance(albedo(fk, i)).max(MIN_ALBEDO);
+                    (fk.features.irradiance[i], fk.features.variance[i] / (la * la), 1.0)
+                })
+                .collect();
+            // one neighbour at a time over the whole row (each pixel still adds its neighbours
+            // in window order, so the sums are those of a per-pixel loop): a few memory streams
+            // at a time instead of a few per neighbour
+            for &(fj, tent) in &neighbours {
+                let origin_j = fj.camera.origin();
+                for (x, (point, (sum, var, wsum))) in centre.iter().zip(sums.iter_mut()).enumerate() {
+                    let i = row_start + x;
+                    let Some(q) = fj.camera.project(*point, w, h) else { continue };
+                    let dist = (*point - origin_j).length();
+                    let normal = fk.features.normal[i];
+                    let emissive = fk.features.emission[i] != Vec3::ZERO;
                     let (qx, qy) = (q.x - 0.5, q.y - 0.5);
                     let (x0, y0) = (qx.floor(), qy.floor());
                     let (fx, fy) = (qx - x0, qy - y0);
@@ -147,19 +158,23 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
                         let t = (ty as u32 * w + tx as u32) as usize;
                         if (fj.features.depth[t] - dist).abs() > p.depth_tolerance * dist
                             || fj.features.normal[t].dot(normal) < p.min_normal_dot
-                            || (fj.features.emission[t] == Vec3::ZERO) != (emission == Vec3::ZERO)
+                            || (fj.features.emission[t] != Vec3::ZERO) != emissive
                         {
                             continue;
                         }
                         let wt = tent * bilinear;
                         let laj = luminance(albedo(fj, t)).max(MIN_ALBEDO);
-                        sum += fj.features.irradiance[t] * wt;
-                        var += fj.features.variance[t] / (laj * laj) * wt * wt;
-                        wsum += wt;
+                        *sum += fj.features.irradiance[t] * wt;
+                        *var += fj.features.variance[t] / (laj * laj) * wt * wt;
+                        *wsum += wt;
                     }
                 }
+            }
+            for (x, (sum, var, wsum)) in sums.into_iter().enumerate() {
+                let i = row_start + x;
+                let la = luminance(albedo(fk, i)).max(MIN_ALBEDO);
                 row_irr[x] = sum / wsum;
-                row[x] = row_irr[x] * fk.features.albedo[i] + emission;
+                row[x] = row_irr[x] * fk.features.albedo[i] + fk.features.emission[i];
                 row_var[x] = var / (wsum * wsum) * la * la;
             }
         });

@@ -83,7 +83,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
     /// The unfiltered render of frame `k` when it is in the window (denoising on and `k` asked
     /// for last or within the window since).
     pub fn raw(&self, k: usize) -> Option<&Image> {
-        self.window.iter().find(|(i, _)| *i == k).map(|(_, f)| &f.image)
+        self.window.iter().find(|(i, _)| *i == k).map(|(_, f)| f.image())
     }
 
     /// Make the window hold exactly the raw renders `lo..=hi` (rendering the missing ones).
@@ -99,7 +99,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             let (image, features) = self.renderer.render_with_features(&settings);
             self.renders += 1;
             self.render_time += t.elapsed();
-            self.window.push_back((next, SequenceFrame { camera: settings.camera, image, features }));
+            self.window.push_back((next, SequenceFrame::new(settings.camera, image, features)));
             next += 1;
         }
         Ok(())

@@ -26,6 +26,8 @@
 //! and 1000 FPS), a slight temporal blur. Like the spatial filter, the result is a pure function
 //! of its inputs: the same bytes whatever the thread count.
 
+use std::sync::OnceLock;
+
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -34,14 +36,79 @@ use super::integrator::{luminance, Features};
 use crate::scene::Camera;
 
 /// One rendered frame of a sequence: its camera, image and first-hit features.
+///
+/// It also keeps, built on first use and dropped when the features are changed, the packed
+/// per-pixel record [`gather`] reads from neighbour frames (one 32-byte record per pixel instead
+/// of six separate buffers).
 #[derive(Clone, Debug)]
 pub struct SequenceFrame {
+    camera: Camera,
+    image: Image,
+    features: Features,
+    taps: OnceLock<Vec<Tap>>,
+}
+
+/// What the window reads of a neighbour's pixel: demodulated irradiance, its variance over the
+/// squared reflectance luminance, the normal and the hit distance, negated when the camera ray
+/// sees an emitter (distances are positive).
+#[derive(Clone, Copy, Debug)]
+struct Tap {
+    irradiance: Vec3,
+    variance: f32,
+    normal: Vec3,
+    signed_depth: f32,
+}
+
+impl SequenceFrame {
+    /// A frame rendered with `camera`: the path tracer's (unfiltered) image and the first-hit
+    /// buffers of the same render.
+    pub fn new(camera: Camera, image: Image, features: Features) -> SequenceFrame {
+        SequenceFrame { camera, image, features, taps: OnceLock::new() }
+    }
+
     /// The camera the frame was rendered with.
-    pub camera: Camera,
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
     /// The path tracer's (unfiltered) image.
-    pub image: Image,
-    /// The first-hit buffers of the same render.
-    pub features: Features,
+    pub fn image(&self) -> &Image {
+        &self.image
+    }
+
+    /// The first-hit buffers of the render.
+    pub fn features(&self) -> &Features {
+        &self.features
+    }
+
+    /// The image, to change.
+    pub fn image_mut(&mut self) -> &mut Image {
+        &mut self.image
+    }
+
+    /// The first-hit buffers, to change (the packed records are rebuilt on next use).
+    pub fn features_mut(&mut self) -> &mut Features {
+        self.taps = OnceLock::new();
+        &mut self.features
+    }
+
+    fn taps(&self) -> &[Tap] {
+        self.taps.get_or_init(|| {
+            let f = &self.features;
+            (0..f.depth.len())
+                .map(|t| {
+                    let la = luminance(f.albedo[t].max(Vec3::splat(MIN_ALBEDO))).max(MIN_ALBEDO);
+                    let emissive = f.emission[t] != Vec3::ZERO;
+                    Tap {
+                        irradiance: f.irradiance[t],
+                        variance: f.variance[t] / (la * la),
+                        normal: f.normal[t],
+                        signed_depth: if emissive { -f.depth[t] } else { f.depth[t] },
+                    }
+                })
+                .collect()
+        })
+    }
 }
 
 /// Settings of the temporal window.
@@ -135,6 +202,7 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
             // at a time instead of a few per neighbour
             for &(fj, tent) in &neighbours {
                 let origin_j = fj.camera.origin();
+                let taps_j = fj.taps();
                 for (x, (point, (sum, var, wsum))) in centre.iter().zip(sums.iter_mut()).enumerate() {
                     let i = row_start + x;
                     let Some(q) = fj.camera.project(*point, w, h) else { continue };
@@ -155,17 +223,16 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
                         if tx < 0 || ty < 0 || tx >= w as i64 || ty >= h as i64 || bilinear <= 0.0 {
                             continue;
                         }
-                        let t = (ty as u32 * w + tx as u32) as usize;
-                        if (fj.features.depth[t] - dist).abs() > p.depth_tolerance * dist
-                            || fj.features.normal[t].dot(normal) < p.min_normal_dot
-                            || (fj.features.emission[t] != Vec3::ZERO) != emissive
+                        let tap = &taps_j[(ty as u32 * w + tx as u32) as usize];
+                        if (tap.signed_depth.abs() - dist).abs() > p.depth_tolerance * dist
+                            || tap.normal.dot(normal) < p.min_normal_dot
+                            || (tap.signed_depth < 0.0) != emissive
                         {
                             continue;
                         }
                         let wt = tent * bilinear;
-                        let laj = luminance(albedo(fj, t)).max(MIN_ALBEDO);
-                        *sum += fj.features.irradiance[t] * wt;
-                        *var += fj.features.variance[t] / (laj * laj) * wt * wt;
+                        *sum += tap.irradiance * wt;
+                        *var += tap.variance * wt * wt;
                         *wsum += wt;
                     }
                 }

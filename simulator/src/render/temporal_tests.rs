@@ -46,13 +46,13 @@ fn frame(k: i32, noise: f32, rng: &mut Rng) -> SequenceFrame {
         }
     }
     features.demodulate(&image);
-    SequenceFrame { camera, image, features }
+    SequenceFrame::new(camera, image, features)
 }
 
 fn truth(center: &SequenceFrame) -> Vec<Vec3> {
     let mut rng = Rng::new(0, 0);
-    let k = (center.camera.origin().x / 0.1).round() as i32;
-    frame(k, 0.0, &mut rng).image.pixels
+    let k = (center.camera().origin().x / 0.1).round() as i32;
+    frame(k, 0.0, &mut rng).image().pixels.clone()
 }
 
 /// RMS relative error against the noise-free frame, over pixels away from the image border.
@@ -83,22 +83,22 @@ fn noise_free_frames_come_back_unchanged() {
     // exact reprojection: the neighbours see the same lighting, stripe included
     let win = window(0.0, 1);
     let (img, f) = gather(&refs(&win), 4, &TemporalParams::default());
-    let err = rms_rel(&img.pixels, &win[4].image.pixels);
+    let err = rms_rel(&img.pixels, &win[4].image().pixels);
     assert!(err < 0.01, "relative RMS change {err}");
-    assert_eq!(f.albedo, win[4].features.albedo);
-    assert_eq!(f.depth, win[4].features.depth);
+    assert_eq!(f.albedo, win[4].features().albedo);
+    assert_eq!(f.depth, win[4].features().depth);
 }
 
 #[test]
 fn noise_drops_and_variance_follows() {
     let win = window(0.2, 2);
-    let before = rms_rel(&win[4].image.pixels, &truth(&win[4]));
+    let before = rms_rel(&win[4].image().pixels, &truth(&win[4]));
     let (img, f) = gather(&refs(&win), 4, &TemporalParams::default());
     let after = rms_rel(&img.pixels, &truth(&win[4]));
     // tent weights 1, 0.8, .., 0.2 on each side: the std of the mean is 0.37x, bilinear reads lower
     assert!(after < 0.45 * before, "{before} -> {after}");
     let mean_var = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
-    let ratio = mean_var(&f.variance) / mean_var(&win[4].features.variance);
+    let ratio = mean_var(&f.variance) / mean_var(&win[4].features().variance);
     assert!(ratio < 0.2 && ratio > 0.02, "variance ratio {ratio}");
     // a radius of 1 averages less
     let (img1, _) = gather(&refs(&win[3..6]), 1, &TemporalParams { radius: 1, ..TemporalParams::default() });
@@ -118,36 +118,36 @@ fn other_surfaces_are_not_averaged_in() {
         for y in 0..H {
             for x in 0..W / 3 {
                 let i = (y * W + x) as usize;
-                f.features.depth[i] *= 0.5;
-                f.image.pixels[i] = Vec3::splat(50.0);
+                f.features_mut().depth[i] *= 0.5;
+                f.image_mut().pixels[i] = Vec3::splat(50.0);
             }
         }
     }
     let (img, _) = gather(&refs(&win), 4, &TemporalParams::default());
-    assert!(rms_rel(&img.pixels, &win[4].image.pixels) < 0.01);
+    assert!(rms_rel(&img.pixels, &win[4].image().pixels) < 0.01);
     // the same with a crease: neighbours' normals tilted by 60 degrees
     let mut win = window(0.0, 4);
     for (j, f) in win.iter_mut().enumerate() {
         if j != 4 {
-            f.features.normal.iter_mut().for_each(|n| *n = Vec3::new(0.0, 0.866, 0.5));
-            f.image.pixels.iter_mut().for_each(|p| *p *= 3.0);
+            f.features_mut().normal.iter_mut().for_each(|n| *n = Vec3::new(0.0, 0.866, 0.5));
+            f.image_mut().pixels.iter_mut().for_each(|p| *p *= 3.0);
         }
     }
     let (img, _) = gather(&refs(&win), 4, &TemporalParams::default());
-    assert!(rms_rel(&img.pixels, &win[4].image.pixels) < 1e-5, "a crease was averaged across");
+    assert!(rms_rel(&img.pixels, &win[4].image().pixels) < 1e-5, "a crease was averaged across");
 }
 
 #[test]
 fn radius_zero_and_window_ends() {
     let win = window(0.2, 5);
     let (img, f) = gather(&refs(&win), 4, &TemporalParams { radius: 0, ..TemporalParams::default() });
-    assert_eq!(img.pixels.len(), win[4].image.pixels.len());
-    assert!(rms_rel(&img.pixels, &win[4].image.pixels) < 1e-5);
-    for (a, b) in f.variance.iter().zip(&win[4].features.variance) {
+    assert_eq!(img.pixels.len(), win[4].image().pixels.len());
+    assert!(rms_rel(&img.pixels, &win[4].image().pixels) < 1e-5);
+    for (a, b) in f.variance.iter().zip(&win[4].features().variance) {
         assert!((a - b).abs() <= 1e-5 * b, "{a} vs {b}");
     }
     // one-sided at the start of a sequence
-    let before = rms_rel(&win[0].image.pixels, &truth(&win[0]));
+    let before = rms_rel(&win[0].image().pixels, &truth(&win[0]));
     let (img, _) = gather(&refs(&win[..5]), 0, &TemporalParams::default());
     assert!(rms_rel(&img.pixels, &truth(&win[0])) < 0.6 * before);
 }

@@ -29,8 +29,8 @@ use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 /// stale caches are never reused. 2: the filters leave directly seen light alone
 /// (`Features::emission`), which changes every denoised frame. 3: the filters smooth
 /// `Features::irradiance` (a per-sample ratio) and remodulate with reflectance from
-/// `feature_spp` camera rays.
-pub const PIPELINE_VERSION: u32 = 3;
+/// `feature_spp` camera rays. 4: the temporal window weighs its frames equally (was a tent).
+pub const PIPELINE_VERSION: u32 = 4;
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]

@@ -8,7 +8,7 @@
 //! many windows it serves; asking for a frame further on drops what no later window needs. A
 //! frame is a pure function of the plan and its index: a run that starts at frame `m` (a resumed
 //! run) re-renders the `radius` frames before it and gets the same bytes as one that started at
-//! 0. Memory: `2 radius + 1` raw frames with features (about 10 MB each at 600x400).
+//! 0. Memory: `2 radius + 1` raw frames with features (about 24 MB each at 600x400).
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};

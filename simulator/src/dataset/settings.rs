@@ -14,7 +14,7 @@
 //! sharp_spp = 32           # samples per pixel of the sharp renders (default 4 x spp)
 //! seed = 0                 # renderer seed
 //! denoise = true           # feature-guided denoising of every rendered frame
-//! temporal_radius = 16     # with denoise: frames on each side reprojected into each frame
+//! temporal_radius = 32     # with denoise: frames on each side reprojected into each frame
 //! feature_spp = 32         # with denoise: camera rays per pixel for the filters' guides
 //! response = { type = "gamma", gamma = 2.2 }
 //! ```
@@ -66,7 +66,7 @@ pub struct DatasetConfig {
     /// `first_view_ms` to the same margin before the trajectory's end. Rounded to whole frames.
     pub spacing_ms: Option<f64>,
     /// Samples per pixel of every rendered frame (>= 1). The default 8, with `feature_spp` 32 and
-    /// `temporal_radius` 16, keeps noise-induced events near 5% in `evsim dataset-noise`.
+    /// `temporal_radius` 32, keeps noise-induced events below 5% in `evsim dataset-noise`.
     pub spp: u32,
     /// Samples per pixel of the sharp renders (test views and `images_sharp_1/`); default
     /// `4 * spp`, never fewer than `spp`.
@@ -99,7 +99,8 @@ pub struct DatasetConfig {
     /// With `denoise`: frames on each side whose lighting is reprojected into each sequence frame
     /// before the spatial filter ([`crate::render::temporal`]; 0 = spatial filter only, at most
     /// 32). The sharp renders are single instants and get the spatial filter only. Memory: the
-    /// window's `2 radius + 1` raw frames (about 13 MB each at 600x400).
+    /// window's `2 radius + 1` raw frames (about 24 MB each at 600x400 with the window's packed
+    /// records: 1.6 GB at radius 32).
     pub temporal_radius: u32,
     /// With `denoise`: camera rays per pixel for the filters' guide buffers (reflectance, directly
     /// seen emission, depth, normal); the first `spp` are shaded paths, the others stop at their
@@ -132,7 +133,7 @@ impl Default for DatasetConfig {
             clamp: 0.0,
             light_samples: 1,
             denoise: true,
-            temporal_radius: 16,
+            temporal_radius: 32,
             feature_spp: 32,
         }
     }

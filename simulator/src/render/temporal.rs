@@ -8,8 +8,8 @@
 //! camera; the neighbour's demodulated irradiance ([`Features::irradiance`]) is read
 //! bilinearly from the taps whose hit distance (within `depth_tolerance`, relative) and normal
 //! (dot at least `min_normal_dot`) show the same surface (and both or neither see an emitter).
-//! Neighbours weigh `1 - |dk| / (radius + 1)`
-//! (a tent, so the window has no lag: a static scene's lighting is not delayed), the centre 1.
+//! Every frame of the window weighs the same (a box: the most noise removed per neighbour read;
+//! being symmetric, it does not delay a static scene's lighting).
 //! Only reflected light is averaged: what the camera rays see directly (emitters, the sky;
 //! [`Features::emission`]) is taken out first and the centre's own added back.
 //! The result is remodulated with the centre frame's reflectance, so texture stays sharp; the
@@ -22,7 +22,7 @@
 //! single frame's spatial filter cannot tell them from real lighting edges.
 //!
 //! Reprojection assumes a static scene (only the camera moves) and view-independent shading at
-//! the first hit: glossy highlights are averaged over the window (±4 ms at the default radius
+//! the first hit: glossy highlights are averaged over the window (±32 ms at the dataset default
 //! and 1000 FPS), a slight temporal blur. Like the spatial filter, the result is a pure function
 //! of its inputs: the same bytes whatever the thread count.
 
@@ -165,11 +165,11 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
     );
     let n = (w * h) as usize;
     let albedo = |f: &SequenceFrame, i: usize| f.features.albedo[i].max(Vec3::splat(MIN_ALBEDO));
-    let neighbours: Vec<(&SequenceFrame, f32)> = window
+    let neighbours: Vec<&SequenceFrame> = window
         .iter()
         .enumerate()
         .filter(|&(j, _)| j != center && j.abs_diff(center) <= p.radius)
-        .map(|(j, &f)| (f, 1.0 - j.abs_diff(center) as f32 / (p.radius as f32 + 1.0)))
+        .map(|(_, &f)| f)
         .collect();
     let mut pixels = vec![Vec3::ZERO; n];
     let mut variance = vec![0.0f32; n];
@@ -200,12 +200,13 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
             // one neighbour at a time over the whole row (each pixel still adds its neighbours
             // in window order, so the sums are those of a per-pixel loop): a few memory streams
             // at a time instead of a few per neighbour
-            for &(fj, tent) in &neighbours {
+            for &fj in &neighbours {
                 let origin_j = fj.camera.origin();
+                let projector = fj.camera.projector(w, h);
                 let taps_j = fj.taps();
                 for (x, (point, (sum, var, wsum))) in centre.iter().zip(sums.iter_mut()).enumerate() {
                     let i = row_start + x;
-                    let Some(q) = fj.camera.project(*point, w, h) else { continue };
+                    let Some(q) = projector.project(*point) else { continue };
                     let dist = (*point - origin_j).length();
                     let normal = fk.features.normal[i];
                     let emissive = fk.features.emission[i] != Vec3::ZERO;
@@ -230,7 +231,7 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
                         {
                             continue;
                         }
-                        let wt = tent * bilinear;
+                        let wt = bilinear;
                         *sum += tap.irradiance * wt;
                         *var += tap.variance * wt * wt;
                         *wsum += wt;

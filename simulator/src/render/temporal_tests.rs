@@ -95,8 +95,8 @@ fn noise_drops_and_variance_follows() {
     let before = rms_rel(&win[4].image().pixels, &truth(&win[4]));
     let (img, f) = gather(&refs(&win), 4, &TemporalParams::default());
     let after = rms_rel(&img.pixels, &truth(&win[4]));
-    // tent weights 1, 0.8, .., 0.2 on each side: the std of the mean is 0.37x, bilinear reads lower
-    assert!(after < 0.45 * before, "{before} -> {after}");
+    // nine equal weights: the std of the mean is 1/3, bilinear reads lower
+    assert!(after < 0.36 * before, "{before} -> {after}");
     let mean_var = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
     let ratio = mean_var(&f.variance) / mean_var(&win[4].features().variance);
     assert!(ratio < 0.2 && ratio > 0.02, "variance ratio {ratio}");

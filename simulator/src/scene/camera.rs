@@ -52,17 +52,44 @@ impl Camera {
     /// an image of `width` x `height`, or `None` when `x` is not in front of the camera. The
     /// point may lie outside the image.
     pub fn project(&self, x: Vec3, width: u32, height: u32) -> Option<Vec2> {
+        self.projector(width, height).project(x)
+    }
+
+    /// [`Camera::project`] for many points: the per-camera numbers computed once.
+    pub fn projector(&self, width: u32, height: u32) -> Projector {
+        Projector {
+            origin: self.origin(),
+            axes: [self.to_world.x_axis, self.to_world.y_axis, self.to_world.z_axis].map(|a| a.truncate()),
+            tan_half: (self.yfov * 0.5).tan(),
+            aspect: width as f32 / height as f32,
+            width: width as f32,
+            height: height as f32,
+        }
+    }
+}
+
+/// A camera's projection onto an image of a given size ([`Camera::projector`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Projector {
+    origin: Vec3,
+    axes: [Vec3; 3],
+    tan_half: f32,
+    aspect: f32,
+    width: f32,
+    height: f32,
+}
+
+impl Projector {
+    /// As [`Camera::project`].
+    pub fn project(&self, x: Vec3) -> Option<Vec2> {
         // rigid transform: the inverse rotation is the transpose
-        let d = x - self.origin();
-        let axes = [self.to_world.x_axis, self.to_world.y_axis, self.to_world.z_axis].map(|a| a.truncate());
-        let local = Vec3::new(d.dot(axes[0]), d.dot(axes[1]), d.dot(axes[2]));
+        let d = x - self.origin;
+        let local = Vec3::new(d.dot(self.axes[0]), d.dot(self.axes[1]), d.dot(self.axes[2]));
         if !(local.z < 0.0) {
             return None;
         }
-        let tan_half = (self.yfov * 0.5).tan();
-        let aspect = width as f32 / height as f32;
-        let (sx, sy) = (local.x / -local.z / (tan_half * aspect), local.y / -local.z / tan_half);
-        Some(Vec2::new((sx + 1.0) * 0.5 * width as f32, (1.0 - sy) * 0.5 * height as f32))
+        let (sx, sy) = (local.x / -local.z / (self.tan_half * self.aspect), local.y / -local.z / self.tan_half);
+        Some(Vec2::new((sx + 1.0) * 0.5 * self.width, (1.0 - sy) * 0.5 * self.height))
     }
 }
 

@@ -383,3 +383,35 @@ fn sweep_overrides_reach_the_plan_and_a_shared_frame_cache_skips_rendering() {
         assert!(e.contains(field) && e.contains("scene.toml"), "{e}");
     }
 }
+
+#[test]
+fn sharp_images_default_to_the_sequence_frames() {
+    // without sharp_spp nothing is rendered for the sharp images: each is the (filtered,
+    // cached) sequence frame at its view's mid-time, through the camera response
+    let dir = temp_dir("dataset", "sharp-frames");
+    let toml = tiny_scene(&dir);
+    let text = std::fs::read_to_string(&toml).unwrap().replace("sharp_spp = 4\n", "");
+    std::fs::write(&toml, text).unwrap();
+    let p = plan(&toml);
+    assert_eq!(p.sharp_spp, None);
+    let (out, cache_root) = (dir.join("out"), dir.join("cache"));
+    let s = write_dataset(&p, &opts(&out, Some(cache_root.clone()))).unwrap();
+    assert_eq!((s.frames_rendered, s.sharp_rendered), (120, 0));
+    let cache = simulator::dataset::cache::FrameCache::open(&cache_root, &p).unwrap();
+    for v in &p.views {
+        let k = p.clock.frame_at(v.mid_ns).unwrap();
+        let path = cache.frame_path(p.config.fps, p.config.spp, p.config.noise_pattern, k);
+        let frame = simulator::dataset::cache::FrameCache::load(&path).unwrap().unwrap();
+        let want = p.config.response.encode_png(&frame, p.config.gain).unwrap();
+        let name = format!("{:02}.png", v.id);
+        assert_eq!(std::fs::read(out.join("images_sharp_1").join(&name)).unwrap(), want, "view {}", v.id);
+        if p.is_sharp(v.id) {
+            assert_eq!(std::fs::read(out.join("images_1").join(&name)).unwrap(), want, "view {}", v.id);
+        }
+    }
+    let o = CheckOptions { test_views: TestViewPolicy::Every8, events_unit: EventsUnit::Ns, ..CheckOptions::default() };
+    let report = check_dataset(&out, &o).unwrap();
+    assert!(report.is_ok() && report.warnings().count() == 0, "{report}");
+    let manifest = std::fs::read_to_string(out.join("dataset.toml")).unwrap();
+    assert!(!manifest.contains("sharp_spp"), "no sharp spp recorded when nothing was rendered");
+}

@@ -66,7 +66,7 @@ dataset = {{ sharp_spp = 8, height = 32 }}
     assert_eq!(names, ["tiny", "tiny-sharp-spp"]);
     // The scene's overrides go over the matrix's, field by field.
     let SceneSource::Simulate(p) = &plan.scenes[1].source else { panic!("simulated") };
-    assert_eq!((p.config.width, p.config.height, p.sharp_spp), (32, 32, 8));
+    assert_eq!((p.config.width, p.config.height, p.sharp_spp), (32, 32, Some(8)));
     assert_ne!(plan.scenes[0].identity, plan.scenes[1].identity);
     let m = &plan.methods[1];
     assert_eq!((m.name.as_str(), m.preset.name), ("no-edi", "ev-deblurnerf"));

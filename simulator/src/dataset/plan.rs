@@ -55,8 +55,9 @@ pub struct Plan {
     pub views: Vec<ViewSpec>,
     /// Exposure `tau` (ns).
     pub tau_ns: i64,
-    /// Samples per pixel of the sharp renders.
-    pub sharp_spp: u32,
+    /// Samples per pixel of separate sharp renders (`[dataset] sharp_spp`); `None`: the sharp
+    /// images are the sequence's own frames at the views' mid-times.
+    pub sharp_spp: Option<u32>,
     /// SHA-256 of the scene folder's files.
     pub scene_key: String,
     /// SHA-256 of what determines the rendered frames.
@@ -87,6 +88,9 @@ struct RenderIdentity<'a> {
     /// Only written when it shapes the frames (denoising on, more rays than `spp`).
     #[serde(skip_serializing_if = "is_zero")]
     feature_spp: u32,
+    /// Only written when on, so that the keys of frames without it are those of earlier versions.
+    #[serde(skip_serializing_if = "is_zero")]
+    texture_filter_bits: u32,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -241,6 +245,7 @@ impl Plan {
                 denoise: config.denoise,
                 temporal_radius: if config.denoise { config.temporal_radius } else { 0 },
                 feature_spp: if config.denoise && config.feature_spp > config.spp { config.feature_spp } else { 0 },
+                texture_filter_bits: config.texture_filter.to_bits(),
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })
@@ -252,7 +257,7 @@ impl Plan {
                 .expect("plain data serialises")
                 .as_bytes(),
         );
-        let sharp_spp = config.sharp_spp.unwrap_or(4 * config.spp);
+        let sharp_spp = config.sharp_spp;
         Ok(Plan {
             scene_file: scene_file.to_path_buf(),
             scene,
@@ -269,6 +274,14 @@ impl Plan {
             render_key,
             settings_hash,
         })
+    }
+
+    /// Where the sharp images come from, for messages: "the sequence frames" or "N spp renders".
+    pub fn sharp_source(&self) -> String {
+        match self.sharp_spp {
+            None => "the sequence frames".into(),
+            Some(spp) => format!("{spp} spp renders"),
+        }
     }
 
     /// Whether view `i` is a sharp test view.
@@ -318,6 +331,12 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
     }
     if d.feature_spp > 4096 {
         return bad("dataset.feature_spp", format!("{} must be at most 4096 camera rays per pixel", d.feature_spp));
+    }
+    if !(d.texture_filter >= 0.0 && d.texture_filter <= 16.0) {
+        return bad(
+            "dataset.texture_filter",
+            format!("{} must be a footprint of 0..=16 pixels (0 turns texture filtering off)", d.texture_filter),
+        );
     }
     if d.light_samples == 0 || d.light_samples > 64 {
         return bad("dataset.light_samples", format!("{} must be 1..=64", d.light_samples));

@@ -3,7 +3,8 @@
 //! exposure (ON red, OFF blue, brighter = more events), side by side with labels.
 //!
 //! The frames are rendered exactly as the dataset writer renders them (same seeds, spp and noise
-//! pattern; the sharp frame at `sharp_spp`), and the events come from the same event model,
+//! pattern; the sharp frame is the sequence frame at the view's mid-time or, with `sharp_spp`
+//! set, a render at that spp), and the events come from the same event model,
 //! started at the frame before the exposure window.
 
 use image::RgbImage;
@@ -48,6 +49,8 @@ pub fn contact_sheet(plan: &Plan, renderer: &Renderer, view: Option<usize>) -> R
     let (t_start, t_end) = (spec.mid_ns - tau_ns / 2, spec.mid_ns + tau_ns / 2);
     let mut counts = vec![(0u16, 0u16); (w * h) as usize];
     let mut blurry = None;
+    let k_mid = plan.clock.frame_at(spec.mid_ns).expect("views lie on frame times");
+    let mut sharp = None;
     let settings = |k: usize, sharp: bool| -> Result<RenderSettings, DatasetError> {
         let pose =
             plan.trajectory.pose_at(plan.clock.time_ns(k)).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
@@ -57,6 +60,9 @@ pub fn contact_sheet(plan: &Plan, renderer: &Renderer, view: Option<usize>) -> R
     for k in first..=last {
         let mut frame = seq.frame(k)?;
         super::cache::round_to_f16(&mut frame);
+        if k == k_mid && plan.sharp_spp.is_none() {
+            sharp = Some(frame.clone());
+        }
         let t_ns = plan.clock.time_ns(k);
         let mut events = VecSink::default();
         let mut scaled = frame.clone();
@@ -75,9 +81,14 @@ pub fn contact_sheet(plan: &Plan, renderer: &Renderer, view: Option<usize>) -> R
         }
     }
     let blurry = blurry.ok_or_else(|| bad("the exposure did not complete".into()))?;
-    let k_mid = plan.clock.frame_at(spec.mid_ns).expect("views lie on frame times");
-    let mut sharp = super::writer::render_frame(renderer, &settings(k_mid, true)?, c.denoise).0;
-    super::cache::round_to_f16(&mut sharp);
+    let sharp = match sharp {
+        Some(frame) => frame,
+        None => {
+            let mut img = super::writer::render_frame(renderer, &settings(k_mid, true)?, c.denoise).0;
+            super::cache::round_to_f16(&mut img);
+            img
+        }
+    };
 
     // the sheet: three panels and a caption row
     let caption = 12u32.max(h / 16);

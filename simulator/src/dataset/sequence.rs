@@ -8,7 +8,8 @@
 //! many windows it serves; asking for a frame further on drops what no later window needs. A
 //! frame is a pure function of the plan and its index: a run that starts at frame `m` (a resumed
 //! run) re-renders the `radius` frames before it and gets the same bytes as one that started at
-//! 0. Memory: `2 radius + 1` raw frames with features (about 24 MB each at 600x400).
+//! 0. Memory: the `radius` frames after the current one with their features (about 24 MB each at
+//! 600x400) and the `radius` before it reduced to what a neighbour needs (about 7.7 MB each).
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -69,6 +70,10 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         let r = self.temporal.radius;
         let (lo, hi) = (k.saturating_sub(r), (k + r).min(self.plan.clock.n_frames - 1));
         self.fill(lo, hi)?;
+        // frames before k are neighbours from now on, never centres again
+        for (_, f) in self.window.iter_mut().filter(|(i, _)| *i < k) {
+            f.keep_neighbour_data();
+        }
         let t = Instant::now();
         let window = self.window.make_contiguous();
         let center = k - lo;
@@ -80,10 +85,10 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         Ok(out)
     }
 
-    /// The unfiltered render of frame `k` when it is in the window (denoising on and `k` asked
-    /// for last or within the window since).
+    /// The unfiltered render of frame `k` when it is in the window with its pixels (denoising
+    /// on and `k` the frame asked for last, or one after it within the window).
     pub fn raw(&self, k: usize) -> Option<&Image> {
-        self.window.iter().find(|(i, _)| *i == k).map(|(_, f)| f.image())
+        self.window.iter().find(|(i, _)| *i == k).map(|(_, f)| f.image()).filter(|img| !img.pixels.is_empty())
     }
 
     /// Make the window hold exactly the raw renders `lo..=hi` (rendering the missing ones).

@@ -9,8 +9,9 @@
 //! 2. **events** (the event model over `gain * frame`, into `events.h5`) and
 //! 3. **exposure** (the box-filter average of every blurry view whose window it overlaps;
 //!    finished views go through the camera response into `images_1/NN.png`).
-//! 4. **Sharp renders** (`sharp_spp` samples at each view's mid-time, cached as well): the sharp
-//!    test views of `images_1/` and `images_sharp_1/NN.png` for every view.
+//! 4. **Sharp images**: the sharp test views of `images_1/` and `images_sharp_1/NN.png` for
+//!    every view. By default the sequence frame at the view's mid-time (written in stage 1);
+//!    with `sharp_spp` set, a separate render with that many samples (cached as well).
 //! 5. **Metadata**: `timestamps.npz`, `poses_bounds.npy` (mid-exposure pose; near/far over the
 //!    frames of the exposure), `all_poses_bounds.npy`, `all_timestamps.npy`, `transforms.json`
 //!    and, last, the `dataset.toml` manifest that marks the folder complete.
@@ -163,8 +164,9 @@ pub fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> Rende
     s.clamp = c.clamp;
     s.light_samples = c.light_samples;
     s.feature_spp = c.feature_spp;
+    s.texture_filter = c.texture_filter;
     if sharp {
-        s.spp = plan.sharp_spp;
+        s.spp = plan.sharp_spp.unwrap_or(c.spp);
         // sharp renders draw from their own streams (far from any sequence frame index)
         s.frame = (1 << 40) + k as u64;
     } else {
@@ -221,7 +223,7 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
             .expect("valid template"),
     );
     // progress counts samples per pixel rendered or read, so the ETA weighs sharp renders
-    pb.set_length(n_frames as u64 * c.spp as u64 + n_views as u64 * plan.sharp_spp as u64);
+    pb.set_length(n_frames as u64 * c.spp as u64 + n_views as u64 * plan.sharp_spp.unwrap_or(0) as u64);
 
     reset_peak_rss();
     let t = Instant::now();
@@ -249,6 +251,10 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     let mut frame_bounds = Vec::with_capacity(n_frames);
     let mut frame_poses = Vec::with_capacity(n_frames);
     let mut seq = SequenceRenderer::new(plan, &renderer, c.spp);
+    // without separate sharp renders: the views whose sharp image is frame k
+    let sharp_at = |k: usize| {
+        plan.views.iter().filter(move |v| plan.sharp_spp.is_none() && plan.clock.frame_at(v.mid_ns) == Some(k))
+    };
     pb.set_message("frames");
     for k in 0..n_frames {
         let t_ns = plan.clock.time_ns(k);
@@ -306,6 +312,9 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
         for (id, img) in finished {
             write_png(&images.join(image_name(id, n_views)), &img, plan)?;
         }
+        for view in sharp_at(k) {
+            write_sharp(plan, out, view, &frame)?;
+        }
         summary.exposure_time += t.elapsed();
     }
     // every frame this run made was rendered once; what else the window rendered came from the cache
@@ -321,9 +330,10 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     // stage 4: sharp renders
     reset_peak_rss();
     pb.set_message("sharp views");
-    for view in &plan.views {
+    for view in plan.views.iter().filter(|_| plan.sharp_spp.is_some()) {
         let k = plan.clock.frame_at(view.mid_ns).expect("views lie on frame times");
-        let path = cache.sharp_path(plan.sharp_spp, view.mid_ns);
+        let sharp_spp = plan.sharp_spp.unwrap_or(c.spp);
+        let path = cache.sharp_path(sharp_spp, view.mid_ns);
         let (img, rendered) = cached_or_rendered(
             &renderer,
             &path,
@@ -335,13 +345,9 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
             summary.sharp_rendered += 1;
             count_render(&mut summary)?;
         }
-        pb.inc(plan.sharp_spp as u64);
+        pb.inc(sharp_spp as u64);
         let t = Instant::now();
-        let name = image_name(view.id, n_views);
-        write_png(&sharp_dir.join(&name), &img, plan)?;
-        if matches!(view.exposure, Exposure::Sharp) {
-            write_png(&images.join(&name), &img, plan)?;
-        }
+        write_sharp(plan, out, view, &img)?;
         summary.exposure_time += t.elapsed();
     }
 
@@ -398,6 +404,17 @@ fn cached_or_rendered(
     Ok((img, true))
 }
 
+/// Write the sharp image of `view`: `images_sharp_1/NN.png` and, for a sharp test view, also
+/// `images_1/NN.png`.
+fn write_sharp(plan: &Plan, out: &Path, view: &ViewSpec, img: &Image) -> Result<(), DatasetError> {
+    let name = image_name(view.id, plan.views.len());
+    write_png(&out.join("images_sharp_1").join(&name), img, plan)?;
+    if matches!(view.exposure, Exposure::Sharp) {
+        write_png(&out.join("images_1").join(&name), img, plan)?;
+    }
+    Ok(())
+}
+
 /// Encode a linear view through the camera response (with the gain) and write it atomically.
 fn write_png(path: &Path, img: &Image, plan: &Plan) -> Result<(), DatasetError> {
     let bytes = plan
@@ -425,7 +442,8 @@ struct Manifest<'a> {
     views: usize,
     sharp_views: Vec<usize>,
     exposure_ns: i64,
-    sharp_spp: u32,
+    /// Absent when the sharp images are the sequence frames.
+    sharp_spp: Option<u32>,
     yfov_deg: f64,
     events: u64,
     events_on: u64,

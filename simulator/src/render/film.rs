@@ -64,6 +64,11 @@ pub struct RenderSettings {
     /// Values below `spp` mean `spp`. Cheap (one ray each) and what keeps texture and edge
     /// detail of filtered frames steady while the camera moves.
     pub feature_spp: u32,
+    /// Texture filtering at camera-ray hits: each camera ray looks its textures up averaged over
+    /// the footprint of a `texture_filter`-pixel step on the film (mip-mapped, anisotropic; see
+    /// [`crate::scene::Texture::sample_footprint`]), so that texture detail finer than that does
+    /// not flicker from frame to frame. 0 = off (plain bilinear lookups, as Mitsuba does).
+    pub texture_filter: f32,
 }
 
 impl RenderSettings {
@@ -83,6 +88,7 @@ impl RenderSettings {
             clamp: 0.0,
             light_samples: 1,
             feature_spp: 0,
+            texture_filter: 0.0,
         }
     }
 }

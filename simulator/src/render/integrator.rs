@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use super::accel::{Accel, BvhPreset, Hit};
 use super::bsdf::Bsdf;
 use super::film::{Image, RenderSettings};
-use super::lights::{emitted, Lights};
+use super::lights::{emitted_filtered, Lights};
 use super::sampler::{pixel_key, SampleStream};
 use super::sampling::{power_heuristic, Frame};
 use crate::scene::Scene;
@@ -155,10 +155,11 @@ impl<'a> Renderer<'a> {
             let film = Vec2::new(x as f32 + c[0], y as f32 + c[1]);
             let dir = s.camera.direction(film, s.width, s.height);
             let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
+            let spread = self.camera_spread(s, film);
             let l = if i < s.spp {
-                Some(self.li_first(origin, dir, s, &mut rng, &mut first))
+                Some(self.li_first(origin, dir, s, &mut rng, &mut first, spread))
             } else {
-                self.first_hit(origin, dir, s, &mut first);
+                self.first_hit(origin, dir, s, &mut first, spread);
                 None
             };
             acc.albedo += first.albedo;
@@ -206,19 +207,58 @@ impl<'a> Renderer<'a> {
         (sum / n, features)
     }
 
+    /// Directions of the camera rays through film points `texture_filter` pixels right of and
+    /// below `film`: the spread of the camera ray through `film` that textures are filtered
+    /// over (None when `texture_filter` is 0, off).
+    fn camera_spread(&self, s: &RenderSettings, film: Vec2) -> Option<[Vec3; 2]> {
+        let k = s.texture_filter;
+        (k > 0.0 && k.is_finite())
+            .then(|| [Vec2::new(k, 0.0), Vec2::new(0.0, k)].map(|o| s.camera.direction(film + o, s.width, s.height)))
+    }
+
+    /// How the texture coordinate changes across the spread of a camera ray (see
+    /// [`Renderer::camera_spread`]) at its hit `sh`: the two neighbour rays are cut with the hit
+    /// triangle's plane and the offsets expressed in the triangle's texture coordinates (pbrt's
+    /// ray differentials). None where a neighbour ray misses the plane.
+    fn uv_footprint(&self, hit: &Hit, sh: &SurfaceHit, origin: Vec3, spread: [Vec3; 2]) -> Option<(Vec2, Vec2)> {
+        let mesh = &self.scene.mesh;
+        let [i0, i1, i2] = mesh.indices[hit.prim as usize];
+        let [p0, p1, p2] = [i0, i1, i2].map(|i| mesh.positions[i as usize]);
+        let [t0, t1, t2] = [i0, i1, i2].map(|i| mesh.uvs[i as usize]);
+        let (e1, e2) = (p1 - p0, p2 - p0);
+        let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let det = a11 * a22 - a12 * a12;
+        if !(det > 0.0) {
+            return None;
+        }
+        let plane = sh.ng.dot(sh.p - origin);
+        let [du, dv] = spread.map(|d| {
+            let cos = sh.ng.dot(d);
+            let t = plane / cos;
+            // the offset on the plane in barycentric steps along the edges (least squares)
+            let dp = origin + d * t - sh.p;
+            let (r1, r2) = (e1.dot(dp), e2.dot(dp));
+            let (b1, b2) = ((a22 * r1 - a12 * r2) / det, (a11 * r2 - a12 * r1) / det);
+            (t > 0.0 && cos.abs() > 1e-6).then(|| (t1 - t0) * b1 + (t2 - t0) * b2)
+        });
+        let (du, dv) = (du?, dv?);
+        (du.is_finite() && dv.is_finite()).then_some((du, dv))
+    }
+
     /// Record what the camera ray `dir` hits first in `first` (as [`Renderer::li_first`] does,
     /// without shading).
-    fn first_hit(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, first: &mut FirstHit) {
+    fn first_hit(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, first: &mut FirstHit, spread: Option<[Vec3; 2]>) {
         let Some(hit) = self.accel.intersect(origin, dir, 0.0, f32::INFINITY) else {
             first.emission = self.scene.environment.radiance(dir);
             return;
         };
         let sh = self.surface(&hit, origin, dir);
+        let fp = spread.and_then(|sp| self.uv_footprint(&hit, &sh, origin, sp));
         first.normal = sh.frame.n;
         first.depth = hit.t;
-        first.emission = emitted(self.scene, hit.prim, hit.bary, -dir);
+        first.emission = emitted_filtered(self.scene, hit.prim, hit.bary, -dir, fp);
         if s.max_depth > 1 {
-            first.albedo = self.bsdf(hit.prim, sh.uv).albedo_hint();
+            first.albedo = self.bsdf(hit.prim, sh.uv, fp).albedo_hint();
         }
     }
 
@@ -243,16 +283,25 @@ impl<'a> Renderer<'a> {
         SurfaceHit { p, ng, frame: Frame::from_normal(ns), front, uv }
     }
 
-    /// The BSDF of triangle `prim`'s material at texture coordinate `uv`.
-    fn bsdf(&self, prim: u32, uv: Vec2) -> Bsdf {
+    /// The BSDF of triangle `prim`'s material at texture coordinate `uv`, its textures filtered
+    /// over the footprint `fp` (offsets of `uv`, see [`crate::scene::Texture::sample_footprint`])
+    /// when given.
+    fn bsdf(&self, prim: u32, uv: Vec2, fp: Option<(Vec2, Vec2)>) -> Bsdf {
         let mat = &self.scene.materials[self.scene.mesh.material[prim as usize] as usize];
+        let lookup = |t: crate::scene::TextureRef| {
+            let tex = &self.scene.textures[t.index as usize];
+            match fp {
+                Some((du, dv)) => tex.sample_footprint(uv, du, dv),
+                None => tex.sample(uv),
+            }
+        };
         let mut base = mat.base_color;
         if let Some(t) = mat.base_color_texture {
-            base *= self.scene.textures[t.index as usize].sample(uv).truncate();
+            base *= lookup(t).truncate();
         }
         let (mut metallic, mut roughness) = (mat.metallic, mat.roughness);
         if let Some(t) = mat.metallic_roughness_texture {
-            let mr = self.scene.textures[t.index as usize].sample(uv);
+            let mr = lookup(t);
             roughness *= mr.y;
             metallic *= mr.z;
         }
@@ -262,11 +311,12 @@ impl<'a> Renderer<'a> {
     /// Radiance arriving at `origin` from direction `dir` (one path sample).
     pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
         let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
-        self.li_first(origin, dir, s, rng, &mut first)
+        self.li_first(origin, dir, s, rng, &mut first, None)
     }
 
     /// [`Renderer::li`], also recording the camera ray's hit in `first` (left as it is when the
-    /// ray escapes).
+    /// ray escapes); with `spread` (see [`Renderer::camera_spread`]) the first hit's textures are
+    /// filtered over the ray's footprint.
     fn li_first(
         &self,
         origin: Vec3,
@@ -274,6 +324,7 @@ impl<'a> Renderer<'a> {
         s: &RenderSettings,
         rng: &mut SampleStream,
         first: &mut FirstHit,
+        spread: Option<[Vec3; 2]>,
     ) -> Vec3 {
         let scene = self.scene;
         let mut l = Vec3::ZERO;
@@ -304,13 +355,18 @@ impl<'a> Renderer<'a> {
                 break;
             };
             let sh = self.surface(&hit, o, d);
+            // texture footprint: camera rays only
+            let fp = match spread {
+                Some(sp) if depth == 1 => self.uv_footprint(&hit, &sh, o, sp),
+                _ => None,
+            };
             if depth == 1 {
                 first.normal = sh.frame.n;
                 first.depth = hit.t;
             }
 
             // add emission at the hit, MIS-weighted against area-light sampling
-            let le = emitted(scene, hit.prim, hit.bary, -d);
+            let le = emitted_filtered(scene, hit.prim, hit.bary, -d, fp);
             if depth == 1 {
                 first.emission = le;
             }
@@ -325,7 +381,7 @@ impl<'a> Renderer<'a> {
                 break;
             }
 
-            let bsdf = self.bsdf(hit.prim, sh.uv);
+            let bsdf = self.bsdf(hit.prim, sh.uv, fp);
             if depth == 1 {
                 first.albedo = bsdf.albedo_hint();
             }

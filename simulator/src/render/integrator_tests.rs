@@ -197,14 +197,7 @@ fn feature_rays_steady_the_reflectance_buffer_and_leave_image_and_lighting_alone
     }
     let dark = glam::Vec4::new(0.05, 0.05, 0.05, 1.0);
     let light = glam::Vec4::new(0.9, 0.9, 0.9, 1.0);
-    let texture = crate::scene::Texture {
-        name: "checker".into(),
-        width: 2,
-        height: 2,
-        texels: vec![dark, light, light, dark],
-        wrap_u: Default::default(),
-        wrap_v: Default::default(),
-    };
+    let texture = crate::scene::Texture::new("checker", 2, 2, vec![dark, light, light, dark]);
     let mut mat = lambert(1.0, 0.0);
     mat.base_color_texture = Some(crate::scene::TextureRef { index: 0 });
     let scene = Scene {
@@ -249,4 +242,83 @@ fn feature_rays_steady_the_reflectance_buffer_and_leave_image_and_lighting_alone
     }
     // 16x the rays: the reflectance buffer's seed-to-seed spread drops by about 4x
     assert!(spread[1] * 2.5 < spread[0], "albedo spread {:?}", spread);
+}
+
+/// A floor at y = 0 with a fine checker texture (`per_unit` checks per world unit) under a
+/// point light, and a camera 1 above it looking straight down with a 1 rad field of view.
+fn checker_floor(per_unit: f32) -> (Scene, RenderSettings) {
+    let mut mesh = TriangleMesh::default();
+    let s = 4.0;
+    quad(&mut mesh, [Vec3::new(-s, 0., -s), Vec3::new(-s, 0., s), Vec3::new(s, 0., s), Vec3::new(s, 0., -s)], 0);
+    for (uv, p) in mesh.uvs.iter_mut().zip(&mesh.positions) {
+        *uv = Vec2::new(p.x, p.z) * per_unit / 2.0; // the 2x2 texture holds 2 checks per unit of uv
+    }
+    let dark = glam::Vec4::new(0.05, 0.05, 0.05, 1.0);
+    let light = glam::Vec4::new(0.9, 0.9, 0.9, 1.0);
+    let texture = crate::scene::Texture::new("checker", 2, 2, vec![dark, light, light, dark]);
+    let mut mat = lambert(1.0, 0.0);
+    mat.base_color_texture = Some(crate::scene::TextureRef { index: 0 });
+    let scene = Scene {
+        mesh,
+        materials: vec![mat],
+        textures: vec![texture],
+        lights: vec![PunctualLight::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0) }],
+        ..Scene::default()
+    };
+    let mut st = settings(4, 2);
+    st.camera = Camera::look_at(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, -1e-3), Vec3::Z, 1.0);
+    (scene, st)
+}
+
+#[test]
+fn texture_footprint_of_a_camera_ray_is_its_pixel_step_on_the_surface() {
+    // looking straight down from height 1: one pixel step is 2 tan(0.5) / height world units,
+    // so the texture coordinate moves by that times the uv scale, along one axis per step
+    let (scene, mut st) = checker_floor(80.0);
+    st.texture_filter = 1.0;
+    let r = Renderer::new(&scene);
+    let uv_per_unit = 40.0;
+    let step = 2.0 * 0.5f32.tan() / st.height as f32 * uv_per_unit;
+    for film in [Vec2::new(8.0, 6.0), Vec2::new(3.3, 9.1)] {
+        let dir = st.camera.direction(film, st.width, st.height);
+        let origin = st.camera.origin();
+        let hit = r.accel.intersect(origin, dir, 0.0, f32::INFINITY).unwrap();
+        let sh = r.surface(&hit, origin, dir);
+        let spread = r.camera_spread(&st, film).unwrap();
+        let (du, dv) = r.uv_footprint(&hit, &sh, origin, spread).unwrap();
+        // off-centre rays hit obliquely: a few percent longer steps
+        for d in [du, dv] {
+            assert!(d.length() > 0.99 * step && d.length() < 1.1 * step, "{film}: {d} vs {step}");
+            assert!(d.x.abs().min(d.y.abs()) < 0.05 * step, "{film}: {d} is not along one axis");
+        }
+        assert!(du.dot(dv).abs() < 0.05 * step * step, "{film}: {du} and {dv} are not perpendicular");
+    }
+    // off: no spread
+    st.texture_filter = 0.0;
+    assert!(r.camera_spread(&st, Vec2::new(8.0, 6.0)).is_none());
+}
+
+#[test]
+fn texture_filtering_steadies_the_reflectance_and_keeps_its_mean() {
+    // 80 checks per unit: about 7 across a pixel. Four rays per pixel alias badly unfiltered;
+    // with the texture filtered over a pixel each ray reads nearly the pixel's mean
+    let (scene, st) = checker_floor(80.0);
+    let r = Renderer::new(&scene);
+    let rms = |a: &[Vec3], b: &[Vec3]| {
+        (a.iter().zip(b).map(|(x, y)| (luminance(*x) - luminance(*y)).powi(2) as f64).sum::<f64>() / a.len() as f64)
+            .sqrt()
+    };
+    let mean = |a: &[Vec3]| a.iter().map(|x| luminance(*x) as f64).sum::<f64>() / a.len() as f64;
+    let mut spread = Vec::new();
+    for texture_filter in [0.0, 1.0] {
+        let albedo =
+            |seed: u64| r.render_with_features(&RenderSettings { seed, texture_filter, ..st.clone() }).1.albedo;
+        let (a1, a2) = (albedo(1), albedo(2));
+        spread.push(rms(&a1, &a2));
+        // the checker's mean reflectance is (0.05 + 0.9) / 2 (unfiltered: 768 rays of 0.05 or
+        // 0.9, a standard error of 0.015)
+        let tol = if texture_filter > 0.0 { 0.005 } else { 0.045 };
+        assert!((mean(&a1) - 0.475).abs() < tol, "texture_filter {texture_filter}: mean {}", mean(&a1));
+    }
+    assert!(spread[1] * 4.0 < spread[0], "albedo spread {spread:?}");
 }

@@ -69,6 +69,12 @@ pub struct Lights {
 /// Emitted radiance of triangle `prim` at barycentrics `bary`, leaving towards `w`
 /// (zero behind a one-sided emitter).
 pub fn emitted(scene: &Scene, prim: u32, bary: Vec2, w: Vec3) -> Vec3 {
+    emitted_filtered(scene, prim, bary, w, None)
+}
+
+/// [`emitted`] with the emission texture filtered over the texture-coordinate footprint `fp`
+/// (see [`crate::scene::Texture::sample_footprint`]) when given.
+pub fn emitted_filtered(scene: &Scene, prim: u32, bary: Vec2, w: Vec3, fp: Option<(Vec2, Vec2)>) -> Vec3 {
     let mat = &scene.materials[scene.mesh.material[prim as usize] as usize];
     if !mat.is_emissive() {
         return Vec3::ZERO;
@@ -84,7 +90,12 @@ pub fn emitted(scene: &Scene, prim: u32, bary: Vec2, w: Vec3) -> Vec3 {
         let uv = scene.mesh.uvs[i0 as usize] * (1.0 - bary.x - bary.y)
             + scene.mesh.uvs[i1 as usize] * bary.x
             + scene.mesh.uvs[i2 as usize] * bary.y;
-        le *= scene.textures[t.index as usize].sample(uv).truncate();
+        let tex = &scene.textures[t.index as usize];
+        le *= match fp {
+            Some((du, dv)) => tex.sample_footprint(uv, du, dv),
+            None => tex.sample(uv),
+        }
+        .truncate();
     }
     le
 }

@@ -92,6 +92,27 @@ impl SequenceFrame {
         &mut self.features
     }
 
+    /// Keep only what [`gather`] reads of a *neighbour* (the camera and the packed records, built
+    /// now if need be) and free the image and feature buffers (about 17 of 24 MB at 600x400):
+    /// for a frame that will not be a window's centre again. The image and features keep their
+    /// size but hold no pixels; passing the frame as a centre afterwards panics.
+    pub fn keep_neighbour_data(&mut self) {
+        self.taps();
+        let (w, h) = (self.image.width, self.image.height);
+        self.image = Image { width: w, height: h, pixels: Vec::new() };
+        let f = &self.features;
+        self.features = Features {
+            width: f.width,
+            height: f.height,
+            albedo: Vec::new(),
+            normal: Vec::new(),
+            depth: Vec::new(),
+            variance: Vec::new(),
+            emission: Vec::new(),
+            irradiance: Vec::new(),
+        };
+    }
+
     fn taps(&self) -> &[Tap] {
         self.taps.get_or_init(|| {
             let f = &self.features;
@@ -184,10 +205,12 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
             // the row's centre pixels: first-hit point, weighted sums of demodulated irradiance
             // and of weight^2 * demodulated variance, and the weight sum
             let row_start = y * w as usize;
-            let centre: Vec<Vec3> = (0..w as usize)
+            // (point, normal, sees an emitter) of each centre pixel
+            let centre: Vec<(Vec3, Vec3, bool)> = (0..w as usize)
                 .map(|x| {
+                    let i = row_start + x;
                     let dir = fk.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
-                    origin + dir * fk.features.depth[row_start + x]
+                    (origin + dir * fk.features.depth[i], fk.features.normal[i], fk.features.emission[i] != Vec3::ZERO)
                 })
                 .collect();
             let mut sums: Vec<(Vec3, f32, f32)> = (0..w as usize)
@@ -204,13 +227,14 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
                 let origin_j = fj.camera.origin();
                 let projector = fj.camera.projector(w, h);
                 let taps_j = fj.taps();
-                for (x, (point, (sum, var, wsum))) in centre.iter().zip(sums.iter_mut()).enumerate() {
-                    let i = row_start + x;
-                    let Some(q) = projector.project(*point) else { continue };
-                    let dist = (*point - origin_j).length();
-                    let normal = fk.features.normal[i];
-                    let emissive = fk.features.emission[i] != Vec3::ZERO;
+                for (&(point, normal, emissive), (sum, var, wsum)) in centre.iter().zip(sums.iter_mut()) {
+                    let Some(q) = projector.project(point) else { continue };
                     let (qx, qy) = (q.x - 0.5, q.y - 0.5);
+                    // entirely outside the neighbour's image (NaN included): nothing to read
+                    if !(qx > -1.0 && qy > -1.0 && qx < w as f32 && qy < h as f32) {
+                        continue;
+                    }
+                    let dist = (point - origin_j).length();
                     let (x0, y0) = (qx.floor(), qy.floor());
                     let (fx, fy) = (qx - x0, qy - y0);
                     let taps = [

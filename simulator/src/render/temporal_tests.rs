@@ -176,3 +176,19 @@ fn bad_settings_name_the_field() {
     let e = TemporalParams { min_normal_dot: 2.0, ..ok }.validate().unwrap_err();
     assert!(e.contains("min_normal_dot"), "{e}");
 }
+
+#[test]
+fn neighbours_reduced_to_their_records_give_the_same_frame() {
+    let win = window(0.1, 5);
+    let (img, f) = gather(&refs(&win), 4, &TemporalParams::default());
+    let mut reduced = win.clone();
+    for (j, fr) in reduced.iter_mut().enumerate() {
+        if j != 4 {
+            fr.keep_neighbour_data();
+            assert!(fr.image().pixels.is_empty() && fr.features().albedo.is_empty());
+        }
+    }
+    let (img2, f2) = gather(&refs(&reduced), 4, &TemporalParams::default());
+    assert_eq!(img, img2);
+    assert_eq!(f, f2);
+}

@@ -1,4 +1,5 @@
-//! Decoded textures: RGBA f32 in linear light, with glTF wrap modes and bilinear lookup.
+//! Decoded textures: RGBA f32 in linear light, with glTF wrap modes, bilinear lookup and
+//! filtered (mip-mapped, anisotropic) lookup over a footprint.
 //!
 //! Colour textures (base colour, emission) are stored in sRGB and decoded to linear at load time
 //! with the exact sRGB EOTF; data textures (metallic-roughness) are read as they are. Texel
@@ -6,6 +7,7 @@
 //! glTF.
 
 use std::path::Path;
+use std::sync::OnceLock;
 
 use glam::{Vec2, Vec4};
 
@@ -24,7 +26,7 @@ pub enum WrapMode {
 }
 
 /// A decoded 2D texture.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Texture {
     /// Name (file name or glTF image name), for messages.
     pub name: String,
@@ -38,7 +40,32 @@ pub struct Texture {
     pub wrap_u: WrapMode,
     /// Wrap mode along v.
     pub wrap_v: WrapMode,
+    /// The box-filtered reductions of `texels` (level 1 = half size, down to 1x1), built on the
+    /// first filtered lookup.
+    pyramid: OnceLock<Vec<Level>>,
 }
+
+impl PartialEq for Texture {
+    /// Same name, size, texels and wrap modes (the pyramid follows from them).
+    fn eq(&self, o: &Texture) -> bool {
+        self.name == o.name
+            && (self.width, self.height) == (o.width, o.height)
+            && self.texels == o.texels
+            && (self.wrap_u, self.wrap_v) == (o.wrap_u, o.wrap_v)
+    }
+}
+
+/// One reduction of a texture.
+#[derive(Clone, Debug, PartialEq)]
+struct Level {
+    width: u32,
+    height: u32,
+    texels: Vec<Vec4>,
+}
+
+/// Most lookups one filtered lookup spreads along a stretched footprint (the ratio of its long
+/// to its short axis beyond which the footprint is treated as wider than it is).
+pub const MAX_ANISOTROPY: u32 = 8;
 
 /// The sRGB electro-optical transfer function: encoded value in `[0, 1]` to linear light.
 pub fn srgb_to_linear(c: f32) -> f32 {
@@ -75,7 +102,21 @@ impl Texture {
                 }
             })
             .collect();
-        Texture { name: name.to_string(), width, height, texels, wrap_u: WrapMode::Repeat, wrap_v: WrapMode::Repeat }
+        Texture::new(name, width, height, texels)
+    }
+
+    /// A texture from linear RGBA texels (row-major, `width * height` of them), wrap mode
+    /// [`WrapMode::Repeat`] both ways.
+    pub fn new(name: &str, width: u32, height: u32, texels: Vec<Vec4>) -> Texture {
+        Texture {
+            name: name.to_string(),
+            width,
+            height,
+            texels,
+            wrap_u: WrapMode::Repeat,
+            wrap_v: WrapMode::Repeat,
+            pyramid: OnceLock::new(),
+        }
     }
 
     /// Decode an image file (PNG or JPEG). `element` names the referring element for messages.
@@ -99,27 +140,132 @@ impl Texture {
         Ok(Self::from_image(&name, img, srgb))
     }
 
-    /// The texel at integer coordinates after wrapping.
-    fn texel(&self, x: i64, y: i64) -> Vec4 {
-        let x = wrap(x, self.width as i64, self.wrap_u);
-        let y = wrap(y, self.height as i64, self.wrap_v);
-        self.texels[(y * self.width as i64 + x) as usize]
-    }
-
     /// Bilinear lookup at texture coordinate `uv` (glTF: (0,0) is the top-left of the image).
     pub fn sample(&self, uv: Vec2) -> Vec4 {
-        let x = uv.x * self.width as f32 - 0.5;
-        let y = uv.y * self.height as f32 - 0.5;
-        if !(x.is_finite() && y.is_finite()) {
-            return self.texels[0];
-        }
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = self.texel(x0, y0) * (1.0 - fx) + self.texel(x0 + 1, y0) * fx;
-        let bottom = self.texel(x0, y0 + 1) * (1.0 - fx) + self.texel(x0 + 1, y0 + 1) * fx;
-        top * (1.0 - fy) + bottom * fy
+        bilinear(&self.texels, self.width, self.height, (self.wrap_u, self.wrap_v), uv)
     }
+
+    /// Filtered lookup: the texture averaged over the footprint spanned by the texture-coordinate
+    /// offsets `du` and `dv` around `uv` (for a camera ray: how `uv` changes from one pixel to
+    /// the next along x and along y). Trilinear mip-mapping at the footprint's short axis, with
+    /// up to [`MAX_ANISOTROPY`] such lookups spread along its long axis (as GPUs filter). A
+    /// footprint smaller than a texel is a plain [`Texture::sample`].
+    pub fn sample_footprint(&self, uv: Vec2, du: Vec2, dv: Vec2) -> Vec4 {
+        let size = Vec2::new(self.width as f32, self.height as f32);
+        let (a, b) = (du * size, dv * size); // in texels
+        let (la, lb) = (a.length(), b.length());
+        if !(la.is_finite() && lb.is_finite()) || la.max(lb) <= 1.0 {
+            return self.sample(uv);
+        }
+        let (major_uv, major, minor) = if la >= lb { (du, la, lb) } else { (dv, lb, la) };
+        let taps = ((major / minor.max(1e-6)).ceil() as u32).clamp(1, MAX_ANISOTROPY);
+        let width = (major / taps as f32).max(minor);
+        let lod = width.log2();
+        if taps == 1 {
+            return self.trilinear(uv, lod);
+        }
+        let mut sum = Vec4::ZERO;
+        for i in 0..taps {
+            let s = (i as f32 + 0.5) / taps as f32 - 0.5;
+            sum += self.trilinear(uv + major_uv * s, lod);
+        }
+        sum / taps as f32
+    }
+
+    /// Lookup at level of detail `lod` (0 = the texels, 1 = the half-size level, ...;
+    /// fractional levels blend the two nearest), bilinear within a level.
+    fn trilinear(&self, uv: Vec2, lod: f32) -> Vec4 {
+        if lod.is_nan() || lod <= 0.0 {
+            return self.sample(uv);
+        }
+        let levels = self.pyramid.get_or_init(|| build_pyramid(&self.texels, self.width, self.height));
+        let top = levels.len() as f32;
+        let lod = lod.min(top);
+        let i = lod.floor() as usize;
+        let f = lod - i as f32;
+        let at = |k: usize| -> Vec4 {
+            if k == 0 {
+                self.sample(uv)
+            } else {
+                let l = &levels[k - 1];
+                bilinear(&l.texels, l.width, l.height, (self.wrap_u, self.wrap_v), uv)
+            }
+        };
+        if f <= 0.0 || i >= levels.len() {
+            at(i)
+        } else {
+            at(i) * (1.0 - f) + at(i + 1) * f
+        }
+    }
+}
+
+/// Bilinear lookup in a row-major `width` x `height` grid of texels.
+fn bilinear(texels: &[Vec4], width: u32, height: u32, (wrap_u, wrap_v): (WrapMode, WrapMode), uv: Vec2) -> Vec4 {
+    let x = uv.x * width as f32 - 0.5;
+    let y = uv.y * height as f32 - 0.5;
+    if !(x.is_finite() && y.is_finite()) {
+        return texels[0];
+    }
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    let (w, h) = (width as i64, height as i64);
+    let (xa, xb) = (wrap(x0, w, wrap_u), wrap(x0 + 1, w, wrap_u));
+    let (ya, yb) = (wrap(y0, h, wrap_v) * w, wrap(y0 + 1, h, wrap_v) * w);
+    let t = |x: i64, y: i64| texels[(y + x) as usize];
+    let top = t(xa, ya) * (1.0 - fx) + t(xb, ya) * fx;
+    let bottom = t(xa, yb) * (1.0 - fx) + t(xb, yb) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// The reductions of a texture down to 1x1: each level halves each side (rounding down, at
+/// least 1) and each of its texels is the exact box average of the area it covers in the level
+/// below (fractional texels weighted by the part covered, so odd sizes lose nothing).
+fn build_pyramid(texels: &[Vec4], width: u32, height: u32) -> Vec<Level> {
+    let mut levels: Vec<Level> = Vec::new();
+    let (mut w, mut h) = (width, height);
+    while w > 1 || h > 1 {
+        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+        let src = levels.last().map_or(texels, |l| &l.texels[..]);
+        // rows first (along x), then columns (along y)
+        let wx = box_weights(w, nw);
+        let mut rows = vec![Vec4::ZERO; (nw * h) as usize];
+        for y in 0..h as usize {
+            for (x, taps) in wx.iter().enumerate() {
+                rows[y * nw as usize + x] = taps.iter().map(|&(i, k)| src[y * w as usize + i] * k).sum();
+            }
+        }
+        let wy = box_weights(h, nh);
+        let mut out = vec![Vec4::ZERO; (nw * nh) as usize];
+        for (y, taps) in wy.iter().enumerate() {
+            for x in 0..nw as usize {
+                out[y * nw as usize + x] = taps.iter().map(|&(i, k)| rows[i * nw as usize + x] * k).sum();
+            }
+        }
+        levels.push(Level { width: nw, height: nh, texels: out });
+        (w, h) = (nw, nh);
+    }
+    levels
+}
+
+/// For each of `m` output cells over `n` input cells (m <= n): the input cells it overlaps and
+/// the weight of each (the overlap over the output cell's length; the weights sum to 1).
+fn box_weights(n: u32, m: u32) -> Vec<Vec<(usize, f32)>> {
+    let scale = n as f64 / m as f64;
+    (0..m)
+        .map(|j| {
+            let (lo, hi) = (j as f64 * scale, (j + 1) as f64 * scale);
+            let first = lo.floor() as usize;
+            let last = (hi.ceil() as usize).min(n as usize);
+            (first..last)
+                .map(|i| {
+                    let overlap = (hi.min(i as f64 + 1.0) - lo.max(i as f64)).max(0.0);
+                    (i, (overlap / scale) as f32)
+                })
+                .filter(|&(_, k)| k > 0.0)
+                .collect()
+        })
+        .collect()
 }
 
 /// Map an integer texel coordinate into [0, n) by the wrap mode.
@@ -145,19 +291,99 @@ mod tests {
 
     fn checker() -> Texture {
         // 2x2: red, green / blue, white
-        Texture {
-            name: "t".into(),
-            width: 2,
-            height: 2,
-            texels: vec![
+        Texture::new(
+            "t",
+            2,
+            2,
+            vec![
                 Vec4::new(1.0, 0.0, 0.0, 1.0),
                 Vec4::new(0.0, 1.0, 0.0, 1.0),
                 Vec4::new(0.0, 0.0, 1.0, 1.0),
                 Vec4::ONE,
             ],
-            wrap_u: WrapMode::Repeat,
-            wrap_v: WrapMode::Repeat,
+        )
+    }
+
+    /// A `w` x `h` texture of pseudo-random grey levels (a hash of the texel index).
+    fn noise(w: u32, h: u32) -> Texture {
+        let texels = (0..w * h)
+            .map(|i| {
+                let v = ((i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 40) as f32 / (1u64 << 24) as f32;
+                Vec4::new(v, 1.0 - v, 0.5 * v, 1.0)
+            })
+            .collect();
+        Texture::new("noise", w, h, texels)
+    }
+
+    #[test]
+    fn pyramid_levels_are_exact_box_means() {
+        for (w, h) in [(8, 8), (7, 5), (13, 1), (1, 6)] {
+            let t = noise(w, h);
+            let levels = build_pyramid(&t.texels, w, h);
+            let mean = t.texels.iter().copied().sum::<Vec4>() / (w * h) as f32;
+            let last = levels.last().unwrap();
+            assert_eq!((last.width, last.height), (1, 1), "{w}x{h}");
+            // every level keeps the mean (exact box weights), and the top is that mean
+            for l in &levels {
+                let m = l.texels.iter().copied().sum::<Vec4>() / (l.width * l.height) as f32;
+                assert!((m - mean).abs().max_element() < 1e-5, "{w}x{h} level {}x{}", l.width, l.height);
+            }
+            assert!((last.texels[0] - mean).abs().max_element() < 1e-5);
         }
+        // a 2x2 block average on an even size
+        let t = noise(4, 2);
+        let l1 = &build_pyramid(&t.texels, 4, 2)[0];
+        let want = (t.texels[0] + t.texels[1] + t.texels[4] + t.texels[5]) / 4.0;
+        assert!((l1.texels[0] - want).abs().max_element() < 1e-6);
+        // 3 -> 1: thirds
+        let w = box_weights(3, 1);
+        assert_eq!(w[0].len(), 3);
+        assert!(w[0].iter().all(|&(_, k)| (k - 1.0 / 3.0).abs() < 1e-6));
+        // 5 -> 2: 1, 1, 0.5 | 0.5, 1, 1 (over 2.5)
+        let w = box_weights(5, 2);
+        assert_eq!(w[0].iter().map(|&(i, _)| i).collect::<Vec<_>>(), vec![0, 1, 2]);
+        assert!((w[0][2].1 - 0.2).abs() < 1e-6 && (w[1][0].1 - 0.2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn small_footprints_are_bilinear_and_large_ones_average() {
+        let t = noise(64, 32);
+        let uv = Vec2::new(0.37, 0.61);
+        // under a texel: exactly the bilinear lookup
+        let tiny = Vec2::new(0.5 / 64.0, 0.0);
+        assert_eq!(t.sample_footprint(uv, tiny, Vec2::new(0.0, 0.5 / 32.0)), t.sample(uv));
+        // a footprint covering the whole texture: its mean
+        let mean = t.texels.iter().copied().sum::<Vec4>() / (64 * 32) as f32;
+        let all = t.sample_footprint(uv, Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0));
+        assert!((all - mean).abs().max_element() < 1e-4, "{all} vs {mean}");
+        // a footprint of 8 texels: close to the box mean over it (the noise's mean is 0.5 in x,
+        // a single texel deviates by up to 0.5)
+        let mid = t.sample_footprint(uv, Vec2::new(8.0 / 64.0, 0.0), Vec2::new(0.0, 8.0 / 32.0));
+        let (x0, y0) = ((uv.x * 64.0 - 4.0) as u32, (uv.y * 32.0 - 4.0) as u32);
+        let mut box_mean = Vec4::ZERO;
+        for y in y0..y0 + 8 {
+            for x in x0..x0 + 8 {
+                box_mean += t.texels[(y * 64 + x) as usize] / 64.0;
+            }
+        }
+        assert!((mid - box_mean).abs().max_element() < 0.08, "{mid} vs {box_mean}");
+        assert!((mid - t.sample(uv)).abs().max_element() > 1e-3, "the footprint changed the lookup");
+    }
+
+    #[test]
+    fn stretched_footprints_spread_along_their_long_axis() {
+        // vertical stripes one texel wide: a footprint long along v (across no stripes) and one
+        // texel wide along u must not blur the stripes, one long along u must
+        let texels = (0..64 * 64).map(|i| if i % 2 == 0 { Vec4::ONE } else { Vec4::ZERO }).collect();
+        let t = Texture::new("stripes", 64, 64, texels);
+        let uv = Vec2::new(10.5 / 64.0, 0.5);
+        let along_v = t.sample_footprint(uv, Vec2::new(1.0 / 64.0, 0.0), Vec2::new(0.0, 8.0 / 64.0));
+        assert!((along_v.x - t.sample(uv).x).abs() < 1e-4, "{along_v} vs {}", t.sample(uv));
+        let along_u = t.sample_footprint(uv, Vec2::new(8.0 / 64.0, 0.0), Vec2::new(0.0, 1.0 / 64.0));
+        assert!((along_u.x - 0.5).abs() < 0.05, "{along_u}");
+        // rotating the footprint's axes (du and dv swapped) gives the same answer
+        let swapped = t.sample_footprint(uv, Vec2::new(0.0, 8.0 / 64.0), Vec2::new(1.0 / 64.0, 0.0));
+        assert_eq!(swapped, along_v);
     }
 
     #[test]

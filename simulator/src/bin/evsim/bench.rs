@@ -382,7 +382,7 @@ fn dataset_bench(b: &DatasetBench) -> Result<()> {
     let c = &plan.config;
     let n = plan.clock.n_frames;
     println!(
-        "dataset bench: {} ({} frames {}x{} at {} FPS, {} spp; {} views, sharp renders at {} spp), {} threads",
+        "dataset bench: {} ({} frames {}x{} at {} FPS, {} spp; {} views, sharp images from {}), {} threads",
         b.scene.display(),
         n,
         c.width,
@@ -390,7 +390,7 @@ fn dataset_bench(b: &DatasetBench) -> Result<()> {
         c.fps,
         c.spp,
         plan.views.len(),
-        plan.sharp_spp,
+        plan.sharp_source(),
         rayon::current_num_threads()
     );
     let start = Instant::now();

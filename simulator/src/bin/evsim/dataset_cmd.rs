@@ -82,6 +82,10 @@ pub struct OverrideArgs {
     /// (texture, edges; up to spp = spp).
     #[arg(long)]
     pub feature_spp: Option<u32>,
+    /// Override [dataset] texture_filter: camera rays filter textures over this many pixels
+    /// (0 = off).
+    #[arg(long)]
+    pub texture_filter: Option<f32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -118,6 +122,7 @@ impl OverrideArgs {
             denoise: self.denoise,
             temporal_radius: self.temporal_radius,
             feature_spp: self.feature_spp,
+            texture_filter: self.texture_filter,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,
@@ -134,7 +139,7 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
     let c = &plan.config;
     let sharp = (0..plan.views.len()).filter(|&i| plan.is_sharp(i)).count();
     eprintln!(
-        "{}: {} frames {}x{} at {} FPS, {} spp; {} views ({} sharp, {} spp), exposure {} ms, threshold {}/{}",
+        "{}: {} frames {}x{} at {} FPS, {} spp; {} views ({} sharp; sharp images from {}), exposure {} ms, threshold {}/{}",
         args.scene.display(),
         plan.clock.n_frames,
         c.width,
@@ -143,7 +148,7 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         c.spp,
         plan.views.len(),
         sharp,
-        plan.sharp_spp,
+        plan.sharp_source(),
         c.exposure_ms,
         plan.events.c_pos,
         plan.events.c_neg

@@ -118,6 +118,11 @@ pub struct RenderArgs {
     /// at low spp.
     #[arg(long)]
     pub denoise: bool,
+    /// Texture filtering at camera-ray hits: each camera ray reads its textures averaged over
+    /// the footprint of this many pixels (mip-mapped, anisotropic; 0 = off, plain bilinear
+    /// lookups as Mitsuba's).
+    #[arg(long, default_value_t = 0.0)]
+    pub texture_filter: f32,
 }
 
 /// Parse "x,y,z" into a vector.
@@ -167,6 +172,9 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
     if !(args.clamp >= 0.0 && args.clamp.is_finite()) {
         bail!("--clamp {}: give a finite value >= 0 (0 turns clamping off)", args.clamp);
     }
+    if !(args.texture_filter >= 0.0 && args.texture_filter <= 16.0) {
+        bail!("--texture-filter {}: give a footprint of 0..=16 pixels (0 turns filtering off)", args.texture_filter);
+    }
     Ok(RenderSettings {
         width: args.width,
         height: args.height,
@@ -180,6 +188,7 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         clamp: args.clamp,
         light_samples: 1,
         feature_spp: 0,
+        texture_filter: args.texture_filter,
     })
 }
 

@@ -122,14 +122,14 @@ fn info(args: &InfoArgs) -> Result<()> {
     );
     let sharp = (0..plan.views.len()).filter(|&i| plan.is_sharp(i)).count();
     println!(
-        "  dataset     {}x{}, {} views ({} sharp), exposure {} ms, {} spp (sharp {}), threshold {}/{}",
+        "  dataset     {}x{}, {} views ({} sharp), exposure {} ms, {} spp (sharp images from {}), threshold {}/{}",
         c.width,
         c.height,
         plan.views.len(),
         sharp,
         c.exposure_ms,
         c.spp,
-        plan.sharp_spp,
+        plan.sharp_source(),
         plan.events.c_pos,
         plan.events.c_neg
     );

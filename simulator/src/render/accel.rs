@@ -70,6 +70,9 @@ pub struct Hit {
     pub prim: u32,
     /// Barycentric coordinates (b1, b2).
     pub bary: Vec2,
+    /// The triangle's edges `v1 - v0` and `v2 - v0` (exactly as computed from the mesh's
+    /// corners; the traversal has just read them, so the shading need not fetch the corners).
+    pub edges: [Vec3; 2],
 }
 
 /// A BVH over a triangle mesh.
@@ -118,7 +121,9 @@ impl Accel {
         }
         let tri = &tris[hit.primitive_id as usize];
         let bary = barycentrics(tri, origin.into(), dir.into());
-        Some(Hit { t: hit.t, prim: self.prim_ids[hit.primitive_id as usize], bary })
+        // obvhs stores e1 = v0 - v1: its negation is v1 - v0 bit for bit
+        let edges = [Vec3::from(-tri.e1), Vec3::from(tri.e2)];
+        Some(Hit { t: hit.t, prim: self.prim_ids[hit.primitive_id as usize], bary, edges })
     }
 
     /// True when anything blocks the segment from `origin` along `dir` for t in (`tmin`, `tmax`).

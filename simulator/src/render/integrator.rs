@@ -35,6 +35,18 @@ pub struct Renderer<'a> {
     pub accel: Accel,
     /// The light table.
     pub lights: Lights,
+    /// Per triangle, what shading a hit reads (normals, texture coordinates, material) in one
+    /// cache line instead of scattered over the mesh's arrays.
+    shading: Vec<ShadingTri>,
+}
+
+/// The per-vertex data of one triangle that shading reads, packed (64 bytes).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct ShadingTri {
+    normals: [Vec3; 3],
+    uvs: [Vec2; 3],
+    material: u32,
 }
 
 /// Everything about a surface hit the shading needs.
@@ -57,7 +69,18 @@ impl<'a> Renderer<'a> {
 
     /// As [`Renderer::new`] with a chosen BVH build preset.
     pub fn with_preset(scene: &'a Scene, preset: BvhPreset) -> Renderer<'a> {
-        Renderer { scene, accel: Accel::build(&scene.mesh, preset), lights: Lights::new(scene) }
+        let mesh = &scene.mesh;
+        let shading = mesh
+            .indices
+            .iter()
+            .zip(&mesh.material)
+            .map(|(&[i0, i1, i2], &material)| ShadingTri {
+                normals: [i0, i1, i2].map(|i| mesh.normals[i as usize]),
+                uvs: [i0, i1, i2].map(|i| mesh.uvs[i as usize]),
+                material,
+            })
+            .collect();
+        Renderer { scene, accel: Accel::build(&scene.mesh, preset), lights: Lights::new(scene), shading }
     }
 
     /// Render one image; ticks `progress` once per finished tile when given.
@@ -148,12 +171,13 @@ impl<'a> Renderer<'a> {
             irradiance: Vec3::ZERO,
         };
         let rays = s.spp.max(feature_spp);
+        let film_rays = s.camera.film_rays(s.width, s.height);
         let mut counted = 0u32;
         for i in 0..rays {
             let mut rng = SampleStream::new(s.sampler, key, i);
             let c = rng.next_4d();
             let film = Vec2::new(x as f32 + c[0], y as f32 + c[1]);
-            let dir = s.camera.direction(film, s.width, s.height);
+            let dir = film_rays.direction(film);
             let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
             let spread = self.camera_spread(s, film);
             let l = if i < s.spp {
@@ -264,21 +288,19 @@ impl<'a> Renderer<'a> {
 
     /// Interpolated surface data at a hit, with the shading frame facing `-dir`.
     fn surface(&self, hit: &Hit, origin: Vec3, dir: Vec3) -> SurfaceHit {
-        let mesh = &self.scene.mesh;
-        let [i0, i1, i2] = mesh.indices[hit.prim as usize];
+        let tri = &self.shading[hit.prim as usize];
         let (b1, b2) = (hit.bary.x, hit.bary.y);
         let b0 = 1.0 - b1 - b2;
-        let [v0, v1, v2] = [i0, i1, i2].map(|i| mesh.positions[i as usize]);
-        let ng = (v1 - v0).cross(v2 - v0).normalize();
+        let ng = hit.edges[0].cross(hit.edges[1]).normalize();
         let front = ng.dot(dir) < 0.0;
-        let mut ns = (mesh.normals[i0 as usize] * b0 + mesh.normals[i1 as usize] * b1 + mesh.normals[i2 as usize] * b2)
-            .try_normalize()
-            .unwrap_or(ng);
+        let [n0, n1, n2] = tri.normals;
+        let mut ns = (n0 * b0 + n1 * b1 + n2 * b2).try_normalize().unwrap_or(ng);
         // make the shading normal face the viewer (two-sided shading)
         if ns.dot(dir) > 0.0 {
             ns = -ns;
         }
-        let uv = mesh.uvs[i0 as usize] * b0 + mesh.uvs[i1 as usize] * b1 + mesh.uvs[i2 as usize] * b2;
+        let [t0, t1, t2] = tri.uvs;
+        let uv = t0 * b0 + t1 * b1 + t2 * b2;
         let p = origin + dir * hit.t;
         SurfaceHit { p, ng, frame: Frame::from_normal(ns), front, uv }
     }
@@ -287,7 +309,7 @@ impl<'a> Renderer<'a> {
     /// over the footprint `fp` (offsets of `uv`, see [`crate::scene::Texture::sample_footprint`])
     /// when given.
     fn bsdf(&self, prim: u32, uv: Vec2, fp: Option<(Vec2, Vec2)>) -> Bsdf {
-        let mat = &self.scene.materials[self.scene.mesh.material[prim as usize] as usize];
+        let mat = &self.scene.materials[self.shading[prim as usize].material as usize];
         let lookup = |t: crate::scene::TextureRef| {
             let tex = &self.scene.textures[t.index as usize];
             match fp {

@@ -41,11 +41,19 @@ impl Camera {
     /// World-space unit direction through film point `p` (pixels, (0,0) = top-left corner of the
     /// image) for an image of `width` x `height` pixels.
     pub fn direction(&self, p: Vec2, width: u32, height: u32) -> Vec3 {
-        let tan_half = (self.yfov * 0.5).tan();
-        let aspect = width as f32 / height as f32;
-        let x = (2.0 * p.x / width as f32 - 1.0) * tan_half * aspect;
-        let y = (1.0 - 2.0 * p.y / height as f32) * tan_half;
-        self.to_world.transform_vector3(Vec3::new(x, y, -1.0)).normalize()
+        self.film_rays(width, height).direction(p)
+    }
+
+    /// [`Camera::direction`] for many film points: the per-camera numbers (a `tan`) computed
+    /// once.
+    pub fn film_rays(&self, width: u32, height: u32) -> FilmRays {
+        FilmRays {
+            to_world: self.to_world,
+            tan_half: (self.yfov * 0.5).tan(),
+            aspect: width as f32 / height as f32,
+            width: width as f32,
+            height: height as f32,
+        }
     }
 
     /// Film point (pixels, as [`Camera::direction`] takes them) where world point `x` appears in
@@ -65,6 +73,26 @@ impl Camera {
             width: width as f32,
             height: height as f32,
         }
+    }
+}
+
+/// A camera's rays through the film of an image of a given size ([`Camera::film_rays`]).
+#[derive(Clone, Copy, Debug)]
+pub struct FilmRays {
+    to_world: Mat4,
+    tan_half: f32,
+    aspect: f32,
+    width: f32,
+    height: f32,
+}
+
+impl FilmRays {
+    /// World-space unit direction through film point `p` (as [`Camera::direction`]).
+    #[inline]
+    pub fn direction(&self, p: Vec2) -> Vec3 {
+        let x = (2.0 * p.x / self.width - 1.0) * self.tan_half * self.aspect;
+        let y = (1.0 - 2.0 * p.y / self.height) * self.tan_half;
+        self.to_world.transform_vector3(Vec3::new(x, y, -1.0)).normalize()
     }
 }
 

@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-pub use camera::{Camera, Projector};
+pub use camera::{Camera, FilmRays, Projector};
 pub use environment::Environment;
 pub use texture::{Texture, WrapMode};
 

@@ -210,8 +210,9 @@ fn bilinear(texels: &[Vec4], width: u32, height: u32, (wrap_u, wrap_v): (WrapMod
     let (fx, fy) = (x - x0, y - y0);
     let (x0, y0) = (x0 as i64, y0 as i64);
     let (w, h) = (width as i64, height as i64);
-    let (xa, xb) = (wrap(x0, w, wrap_u), wrap(x0 + 1, w, wrap_u));
-    let (ya, yb) = (wrap(y0, h, wrap_v) * w, wrap(y0 + 1, h, wrap_v) * w);
+    let (xa, xb) = wrap_pair(x0, w, wrap_u);
+    let (ya, yb) = wrap_pair(y0, h, wrap_v);
+    let (ya, yb) = (ya * w, yb * w);
     let t = |x: i64, y: i64| texels[(y + x) as usize];
     let top = t(xa, ya) * (1.0 - fx) + t(xb, ya) * fx;
     let bottom = t(xa, yb) * (1.0 - fx) + t(xb, yb) * fx;
@@ -266,6 +267,18 @@ fn box_weights(n: u32, m: u32) -> Vec<Vec<(usize, f32)>> {
                 .collect()
         })
         .collect()
+}
+
+/// [`wrap`] of `i` and `i + 1` (one division instead of two for the repeat mode).
+#[inline]
+fn wrap_pair(i: i64, n: i64, mode: WrapMode) -> (i64, i64) {
+    match mode {
+        WrapMode::Repeat => {
+            let a = i.rem_euclid(n);
+            (a, if a + 1 == n { 0 } else { a + 1 })
+        }
+        _ => (wrap(i, n, mode), wrap(i + 1, n, mode)),
+    }
 }
 
 /// Map an integer texel coordinate into [0, n) by the wrap mode.
@@ -409,6 +422,17 @@ mod tests {
         let t = checker();
         let m = t.sample(Vec2::new(0.0, 0.25));
         assert!((m - Vec4::new(0.5, 0.5, 0.0, 1.0)).abs().max_element() < 1e-6);
+    }
+
+    #[test]
+    fn wrapped_pairs_are_the_wrapped_neighbours() {
+        for mode in [WrapMode::Repeat, WrapMode::ClampToEdge, WrapMode::MirroredRepeat] {
+            for n in [1, 2, 5] {
+                for i in -12..12 {
+                    assert_eq!(wrap_pair(i, n, mode), (wrap(i, n, mode), wrap(i + 1, n, mode)), "{mode:?} {n} {i}");
+                }
+            }
+        }
     }
 
     #[test]

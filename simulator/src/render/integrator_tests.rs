@@ -186,34 +186,16 @@ fn several_light_samples_per_vertex_keep_the_expectation() {
     assert!((img.mean() - Vec3::splat(0.6)).abs().max_element() < 0.01, "{}", img.mean());
 }
 
+/// RMS difference of the luminances of two buffers.
+fn rms(a: &[Vec3], b: &[Vec3]) -> f64 {
+    (a.iter().zip(b).map(|(x, y)| (luminance(*x) - luminance(*y)).powi(2) as f64).sum::<f64>() / a.len() as f64).sqrt()
+}
+
 #[test]
 fn feature_rays_steady_the_reflectance_buffer_and_leave_image_and_lighting_alone() {
     // a floor with a fine checker texture (several checks per pixel) under a point light
-    let mut mesh = TriangleMesh::default();
-    let s = 4.0;
-    quad(&mut mesh, [Vec3::new(-s, 0., -s), Vec3::new(-s, 0., s), Vec3::new(s, 0., s), Vec3::new(s, 0., -s)], 0);
-    for (uv, p) in mesh.uvs.iter_mut().zip(&mesh.positions) {
-        *uv = Vec2::new(p.x, p.z) * 40.0;
-    }
-    let dark = glam::Vec4::new(0.05, 0.05, 0.05, 1.0);
-    let light = glam::Vec4::new(0.9, 0.9, 0.9, 1.0);
-    let texture = crate::scene::Texture::new("checker", 2, 2, vec![dark, light, light, dark]);
-    let mut mat = lambert(1.0, 0.0);
-    mat.base_color_texture = Some(crate::scene::TextureRef { index: 0 });
-    let scene = Scene {
-        mesh,
-        materials: vec![mat],
-        textures: vec![texture],
-        lights: vec![PunctualLight::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0) }],
-        ..Scene::default()
-    };
+    let (scene, st) = checker_floor(80.0);
     let r = Renderer::new(&scene);
-    let mut st = settings(4, 2);
-    st.camera = Camera::look_at(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, -1e-3), Vec3::Z, 1.0);
-    let rms = |a: &[Vec3], b: &[Vec3]| {
-        (a.iter().zip(b).map(|(x, y)| (luminance(*x) - luminance(*y)).powi(2) as f64).sum::<f64>() / a.len() as f64)
-            .sqrt()
-    };
     let mut spread = Vec::new();
     for feature_spp in [0, 64] {
         let with = |seed: u64| {
@@ -304,10 +286,6 @@ fn texture_filtering_steadies_the_reflectance_and_keeps_its_mean() {
     // with the texture filtered over a pixel each ray reads nearly the pixel's mean
     let (scene, st) = checker_floor(80.0);
     let r = Renderer::new(&scene);
-    let rms = |a: &[Vec3], b: &[Vec3]| {
-        (a.iter().zip(b).map(|(x, y)| (luminance(*x) - luminance(*y)).powi(2) as f64).sum::<f64>() / a.len() as f64)
-            .sqrt()
-    };
     let mean = |a: &[Vec3]| a.iter().map(|x| luminance(*x) as f64).sum::<f64>() / a.len() as f64;
     let mut spread = Vec::new();
     for texture_filter in [0.0, 1.0] {

@@ -30,7 +30,9 @@ use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 /// (`Features::emission`), which changes every denoised frame. 3: the filters smooth
 /// `Features::irradiance` (a per-sample ratio) and remodulate with reflectance from
 /// `feature_spp` camera rays. 4: the temporal window weighs its frames equally (was a tent).
-pub const PIPELINE_VERSION: u32 = 4;
+/// 5: camera rays' first triangles come from a rasterised visibility buffer (differs from
+/// traced rays only within float error of edges).
+pub const PIPELINE_VERSION: u32 = 5;
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]
@@ -91,6 +93,9 @@ struct RenderIdentity<'a> {
     /// Only written when on, so that the keys of frames without it are those of earlier versions.
     #[serde(skip_serializing_if = "is_zero")]
     texture_filter_bits: u32,
+    /// Only written when on, as `texture_filter_bits`.
+    #[serde(skip_serializing_if = "is_zero")]
+    radiance_cache: u32,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -246,6 +251,7 @@ impl Plan {
                 temporal_radius: if config.denoise { config.temporal_radius } else { 0 },
                 feature_spp: if config.denoise && config.feature_spp > config.spp { config.feature_spp } else { 0 },
                 texture_filter_bits: config.texture_filter.to_bits(),
+                radiance_cache: config.radiance_cache,
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })
@@ -336,6 +342,12 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
         return bad(
             "dataset.texture_filter",
             format!("{} must be a footprint of 0..=16 pixels (0 turns texture filtering off)", d.texture_filter),
+        );
+    }
+    if d.radiance_cache > 1024 {
+        return bad(
+            "dataset.radiance_cache",
+            format!("{} must be at most 1024 paths per cache point (0 turns the cache off)", d.radiance_cache),
         );
     }
     if d.light_samples == 0 || d.light_samples > 64 {

@@ -82,6 +82,8 @@ pub struct Accel {
     tris: Vec<RtTriangle>,
     /// Mesh triangle index of each BVH primitive.
     prim_ids: Vec<u32>,
+    /// BVH primitive of each mesh triangle (the first, when pre-splits duplicate it).
+    bvh_index: Vec<u32>,
     /// Wall time of the core build.
     pub build_time: Duration,
 }
@@ -97,14 +99,24 @@ impl Accel {
             })
             .collect();
         if tris.is_empty() {
-            return Accel { bvh: CwBvh::default(), tris: vec![], prim_ids: vec![], build_time: start.elapsed() };
+            return Accel {
+                bvh: CwBvh::default(),
+                tris: vec![],
+                prim_ids: vec![],
+                bvh_index: vec![],
+                build_time: start.elapsed(),
+            };
         }
         let mut core = Duration::ZERO;
         let bvh = build_cwbvh_from_tris(&tris, preset.params(), &mut core);
         // reorder the triangles so the leaves read them contiguously
         let prim_ids = bvh.primitive_indices.clone();
+        let mut bvh_index = vec![u32::MAX; tris.len()];
+        for (j, &i) in prim_ids.iter().enumerate().rev() {
+            bvh_index[i as usize] = j as u32;
+        }
         let tris = prim_ids.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
-        Accel { bvh, tris, prim_ids, build_time: start.elapsed() }
+        Accel { bvh, tris, prim_ids, bvh_index, build_time: start.elapsed() }
     }
 
     /// Closest intersection with `t` in (`tmin`, `tmax`), if any.
@@ -119,11 +131,28 @@ impl Accel {
         if !self.bvh.ray_traverse(ray, &mut hit, |r, id| tris[id].intersect(r)) {
             return None;
         }
-        let tri = &tris[hit.primitive_id as usize];
+        Some(self.hit(hit.primitive_id, hit.t, origin, dir))
+    }
+
+    /// The intersection of the ray with mesh triangle `prim` alone, with `t` in (`tmin`,
+    /// `tmax`): the same numbers [`Accel::intersect`] returns when that triangle is the closest
+    /// hit. For rays whose first triangle is known (rasterised camera rays).
+    #[inline]
+    pub fn intersect_triangle(&self, prim: u32, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        let j = *self.bvh_index.get(prim as usize)?;
+        let tri = self.tris.get(j as usize)?;
+        let t = tri.intersect(&Ray::new(origin.into(), dir.into(), tmin, tmax));
+        (t >= tmin && t <= tmax && t.is_finite()).then(|| self.hit(j, t, origin, dir))
+    }
+
+    /// The [`Hit`] of the ray with BVH primitive `j` at distance `t`.
+    #[inline]
+    fn hit(&self, j: u32, t: f32, origin: Vec3, dir: Vec3) -> Hit {
+        let tri = &self.tris[j as usize];
         let bary = barycentrics(tri, origin.into(), dir.into());
         // obvhs stores e1 = v0 - v1: its negation is v1 - v0 bit for bit
         let edges = [Vec3::from(-tri.e1), Vec3::from(tri.e2)];
-        Some(Hit { t: hit.t, prim: self.prim_ids[hit.primitive_id as usize], bary, edges })
+        Hit { t, prim: self.prim_ids[j as usize], bary, edges }
     }
 
     /// True when anything blocks the segment from `origin` along `dir` for t in (`tmin`, `tmax`).

@@ -69,6 +69,12 @@ pub struct RenderSettings {
     /// [`crate::scene::Texture::sample_footprint`]), so that texture detail finer than that does
     /// not flicker from frame to frame. 0 = off (plain bilinear lookups, as Mitsuba does).
     pub texture_filter: f32,
+    /// Paths per lattice point of the radiance cache ([`super::radiance_cache`]) that ends
+    /// paths at their second surface vertex; 0 = off (full paths, the default).
+    pub radiance_cache: u32,
+    /// Lattice spacing of the radiance cache (world units; 0 = the scene's bounding-box
+    /// diagonal over 128).
+    pub cache_spacing: f32,
 }
 
 impl RenderSettings {
@@ -89,6 +95,8 @@ impl RenderSettings {
             light_samples: 1,
             feature_spp: 0,
             texture_filter: 0.0,
+            radiance_cache: 0,
+            cache_spacing: 0.0,
         }
     }
 }

@@ -12,6 +12,8 @@
 //! [`SampleStream`] that is a function of (seed, pixel, frame, sample), so the image does not
 //! depend on thread count or tile order.
 
+use std::sync::{Arc, Mutex};
+
 use glam::{Vec2, Vec3};
 use indicatif::ProgressBar;
 use rayon::prelude::*;
@@ -20,6 +22,8 @@ use super::accel::{Accel, BvhPreset, Hit};
 use super::bsdf::Bsdf;
 use super::film::{Image, RenderSettings};
 use super::lights::{emitted_filtered, Lights};
+use super::radiance_cache::{lattice_bary, lattice_index, steps_for, CacheParams, Lattice, RadianceCache};
+use super::raster::{rasterise, Visibility};
 use super::sampler::{pixel_key, SampleStream};
 use super::sampling::{power_heuristic, Frame};
 use crate::scene::Scene;
@@ -38,6 +42,9 @@ pub struct Renderer<'a> {
     /// Per triangle, what shading a hit reads (normals, texture coordinates, material) in one
     /// cache line instead of scattered over the mesh's arrays.
     shading: Vec<ShadingTri>,
+    /// The radiance cache of the last render that asked for one (kept while its parameters
+    /// stay the same, so the frames of a sequence share it).
+    cache: Mutex<Option<Arc<RadianceCache>>>,
 }
 
 /// The per-vertex data of one triangle that shading reads, packed (64 bytes).
@@ -80,12 +87,22 @@ impl<'a> Renderer<'a> {
                 material,
             })
             .collect();
-        Renderer { scene, accel: Accel::build(&scene.mesh, preset), lights: Lights::new(scene), shading }
+        Renderer {
+            scene,
+            accel: Accel::build(&scene.mesh, preset),
+            lights: Lights::new(scene),
+            shading,
+            cache: Mutex::new(None),
+        }
     }
 
-    /// Render one image; ticks `progress` once per finished tile when given.
+    /// Render one image; ticks `progress` once per finished tile when given. Camera rays are
+    /// traced; with `settings.radiance_cache`, paths end at their second bounce
+    /// ([`crate::render::radiance_cache`]).
     pub fn render(&self, settings: &RenderSettings, progress: Option<&ProgressBar>) -> Image {
         let (w, h) = (settings.width, settings.height);
+        let cache = self.radiance_cache(settings);
+        let cache = cache.as_deref();
         let tiles_x = w.div_ceil(TILE);
         let tiles: Vec<(u32, u32)> =
             (0..h.div_ceil(TILE)).flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty))).collect();
@@ -98,7 +115,7 @@ impl<'a> Renderer<'a> {
                 let mut out = Vec::with_capacity((TILE * TILE) as usize);
                 for y in ty * TILE..((ty + 1) * TILE).min(h) {
                     for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                        out.push(self.pixel(settings, x, y));
+                        out.push(self.pixel_with_features(settings, x, y, 0, None, cache).0);
                     }
                 }
                 if let Some(pb) = progress {
@@ -120,14 +137,21 @@ impl<'a> Renderer<'a> {
     }
 
     /// Render one image and the first-hit feature buffers a denoiser is guided by
-    /// ([`crate::render::denoise`]); the image is the one [`Renderer::render`] returns. The
-    /// buffers average `max(spp, feature_spp)` camera rays per pixel (see [`Features`]).
+    /// ([`crate::render::denoise`]). The buffers average `max(spp, feature_spp)` camera rays per
+    /// pixel (see [`Features`]). The camera rays' first hits come from a rasterised visibility
+    /// buffer ([`crate::render::raster`]): the image equals [`Renderer::render`]'s except for
+    /// samples within float error of a triangle edge (or seeing geometry nearer than
+    /// [`crate::render::raster::NEAR`]). Paths use the radiance cache as in
+    /// [`Renderer::render`].
     pub fn render_with_features(&self, settings: &RenderSettings) -> (Image, Features) {
         let (w, h) = (settings.width, settings.height);
         let feature_spp = settings.feature_spp.max(settings.spp);
+        let vis = self.visibility(settings, feature_spp);
+        let cache = self.radiance_cache(settings);
+        let cache = cache.as_deref();
         let rows: Vec<Vec<(Vec3, PixelFeatures)>> = (0..h)
             .into_par_iter()
-            .map(|y| (0..w).map(|x| self.pixel_with_features(settings, x, y, feature_spp)).collect())
+            .map(|y| (0..w).map(|x| self.pixel_with_features(settings, x, y, feature_spp, Some(&vis), cache)).collect())
             .collect();
         let mut img = Image::new(w, h);
         let mut f = Features::new(w, h);
@@ -143,14 +167,121 @@ impl<'a> Renderer<'a> {
         (img, f)
     }
 
-    /// Mean of `spp` box-filtered samples of pixel (x, y).
+    /// The first triangle each of the first `samples` camera rays of every pixel sees
+    /// (rasterised, with the film points the renderer's samplers give those rays).
+    pub fn visibility(&self, s: &RenderSettings, samples: u32) -> Visibility {
+        let offsets = |x: u32, y: u32, out: &mut [Vec2]| {
+            let key = pixel_key(s.seed, y as u64 * s.width as u64 + x as u64, s.frame);
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = Vec2::from(SampleStream::new(s.sampler, key, i as u32).next_2d());
+            }
+        };
+        rasterise(&self.scene.mesh, &s.camera, s.width, s.height, samples, offsets)
+    }
+
+    /// Mean of `spp` box-filtered samples of pixel (x, y) (full paths: no radiance cache).
     pub fn pixel(&self, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
-        self.pixel_with_features(s, x, y, 0).0
+        self.pixel_with_features(s, x, y, 0, None, None).0
+    }
+
+    /// The radiance cache `s` asks for (None when `s.radiance_cache` is 0 or paths are too
+    /// short to reach a second bounce): the one already filled when its parameters match, else
+    /// a new, empty one.
+    pub fn radiance_cache(&self, s: &RenderSettings) -> Option<Arc<RadianceCache>> {
+        if s.radiance_cache == 0 || s.max_depth < 3 {
+            return None;
+        }
+        let spacing = if s.cache_spacing > 0.0 && s.cache_spacing.is_finite() {
+            s.cache_spacing
+        } else {
+            let (lo, hi) = self
+                .scene
+                .mesh
+                .positions
+                .iter()
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+            ((hi - lo).length() / 128.0).max(1e-6)
+        };
+        // the cached paths start one segment later than the camera's
+        let params = CacheParams {
+            paths: s.radiance_cache,
+            spacing,
+            seed: s.seed,
+            sampler: s.sampler,
+            max_depth: s.max_depth - 1,
+            rr_depth: s.rr_depth.saturating_sub(1).max(1),
+            clamp: s.clamp,
+            light_samples: s.light_samples,
+        };
+        let mut slot = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        match &*slot {
+            Some(c) if c.params == params => Some(c.clone()),
+            _ => {
+                let c = Arc::new(RadianceCache::new(params, self.scene.mesh.len()));
+                *slot = Some(c.clone());
+                Some(c)
+            }
+        }
+    }
+
+    /// Compute the lattice of triangle `prim`'s `front` (or back) side for `cache` (see
+    /// [`crate::render::radiance_cache`]).
+    fn fill_lattice(&self, cache: &RadianceCache, prim: u32, front: bool) -> Lattice {
+        let p = cache.params;
+        let [a, b, c] = self.scene.mesh.corners(prim as usize);
+        let (e1, e2) = (b - a, c - a);
+        let longest = e1.length().max(e2.length()).max((c - b).length());
+        let steps = steps_for(longest, p.spacing);
+        let mut values = vec![Vec3::ZERO; ((steps + 1) * (steps + 2) / 2) as usize];
+        let Some(ng) = e1.cross(e2).try_normalize() else {
+            return Lattice { steps, values };
+        };
+        let n = if front { ng } else { -ng };
+        let mut s = RenderSettings::new(crate::scene::Camera::look_at(Vec3::ZERO, -Vec3::Z, Vec3::Y, 1.0));
+        s.max_depth = p.max_depth;
+        s.rr_depth = p.rr_depth;
+        s.clamp = p.clamp;
+        s.light_samples = p.light_samples;
+        let side = prim as u64 * 2 + u64::from(!front);
+        for j in 0..=steps {
+            for i in 0..=steps - j {
+                let k = lattice_index(steps, i, j);
+                let bary = lattice_bary(steps, i, j);
+                let x = a + e1 * bary.x + e2 * bary.y;
+                let origin = offset_origin(x, n);
+                let dir = -n;
+                let Some(hit) = self.accel.intersect_triangle(prim, origin, dir, 0.0, f32::INFINITY) else {
+                    continue;
+                };
+                let key = pixel_key(p.seed ^ CACHE_SALT, side, k as u64);
+                let (mut refl, mut albedo) = (Vec3::ZERO, Vec3::ZERO);
+                for path in 0..p.paths {
+                    let mut rng = SampleStream::new(p.sampler, key, path);
+                    let mut first = FirstHit { albedo: Vec3::ZERO, normal: n, depth: MISS_DEPTH, emission: Vec3::ZERO };
+                    let l = self.li_first(origin, dir, &s, &mut rng, &mut first, None, Some(Some(hit)), None);
+                    if l.is_finite() {
+                        refl += (l - first.emission).max(Vec3::ZERO);
+                        albedo += first.albedo;
+                    }
+                }
+                values[k] = refl / albedo.max(Vec3::splat(MIN_REFLECTANCE));
+            }
+        }
+        Lattice { steps, values }
     }
 
     /// [`Renderer::pixel`] and the pixel's first-hit features over `max(spp, feature_spp)`
-    /// camera rays (the first `spp` shaded).
-    fn pixel_with_features(&self, s: &RenderSettings, x: u32, y: u32, feature_spp: u32) -> (Vec3, PixelFeatures) {
+    /// camera rays (the first `spp` shaded); with `vis`, the camera rays' first triangles come
+    /// from it (see [`Renderer::camera_hit`]).
+    fn pixel_with_features(
+        &self,
+        s: &RenderSettings,
+        x: u32,
+        y: u32,
+        feature_spp: u32,
+        vis: Option<&Visibility>,
+        cache: Option<&RadianceCache>,
+    ) -> (Vec3, PixelFeatures) {
         let pixel_index = y as u64 * s.width as u64 + x as u64;
         let origin = s.camera.origin();
         let key = pixel_key(s.seed, pixel_index, s.frame);
@@ -175,15 +306,26 @@ impl<'a> Renderer<'a> {
         let mut counted = 0u32;
         for i in 0..rays {
             let mut rng = SampleStream::new(s.sampler, key, i);
-            let c = rng.next_4d();
-            let film = Vec2::new(x as f32 + c[0], y as f32 + c[1]);
+            // the film offset: from the visibility buffer when it holds this sample
+            let c = match vis.filter(|v| i < v.samples) {
+                Some(v) => {
+                    rng.skip_4d();
+                    v.offset(x, y, i)
+                }
+                None => {
+                    let c = rng.next_4d();
+                    Vec2::new(c[0], c[1])
+                }
+            };
+            let film = Vec2::new(x as f32 + c.x, y as f32 + c.y);
             let dir = film_rays.direction(film);
             let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
             let spread = self.camera_spread(s, film);
+            let hit = self.camera_hit(vis.filter(|v| i < v.samples).map(|v| v.prim(x, y, i)), origin, dir);
             let l = if i < s.spp {
-                Some(self.li_first(origin, dir, s, &mut rng, &mut first, spread))
+                Some(self.li_first(origin, dir, s, &mut rng, &mut first, spread, Some(hit), cache))
             } else {
-                self.first_hit(origin, dir, s, &mut first, spread);
+                self.first_hit(hit, origin, dir, s, &mut first, spread);
                 None
             };
             acc.albedo += first.albedo;
@@ -269,10 +411,30 @@ impl<'a> Renderer<'a> {
         (du.is_finite() && dv.is_finite()).then_some((du, dv))
     }
 
-    /// Record what the camera ray `dir` hits first in `first` (as [`Renderer::li_first`] does,
-    /// without shading).
-    fn first_hit(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, first: &mut FirstHit, spread: Option<[Vec3; 2]>) {
-        let Some(hit) = self.accel.intersect(origin, dir, 0.0, f32::INFINITY) else {
+    /// The first hit of a camera ray. `known` is what a visibility buffer says: `Some(Some(p))`
+    /// when triangle `p` covers the ray's film point (the ray is intersected with it alone,
+    /// exactly as the BVH would), `Some(None)` when nothing does; rays it cannot settle (no
+    /// buffer, nothing covering, a miss of the covering triangle within float error) are traced.
+    #[inline]
+    fn camera_hit(&self, known: Option<Option<u32>>, origin: Vec3, dir: Vec3) -> Option<Hit> {
+        known
+            .flatten()
+            .and_then(|p| self.accel.intersect_triangle(p, origin, dir, 0.0, f32::INFINITY))
+            .or_else(|| self.accel.intersect(origin, dir, 0.0, f32::INFINITY))
+    }
+
+    /// Record the camera ray `dir`'s first hit `hit` in `first` (as [`Renderer::li_first`]
+    /// does, without shading).
+    fn first_hit(
+        &self,
+        hit: Option<Hit>,
+        origin: Vec3,
+        dir: Vec3,
+        s: &RenderSettings,
+        first: &mut FirstHit,
+        spread: Option<[Vec3; 2]>,
+    ) {
+        let Some(hit) = hit else {
             first.emission = self.scene.environment.radiance(dir);
             return;
         };
@@ -333,12 +495,15 @@ impl<'a> Renderer<'a> {
     /// Radiance arriving at `origin` from direction `dir` (one path sample).
     pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
         let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
-        self.li_first(origin, dir, s, rng, &mut first, None)
+        self.li_first(origin, dir, s, rng, &mut first, None, None, None)
     }
 
     /// [`Renderer::li`], also recording the camera ray's hit in `first` (left as it is when the
     /// ray escapes); with `spread` (see [`Renderer::camera_spread`]) the first hit's textures are
-    /// filtered over the ray's footprint.
+    /// filtered over the ray's footprint; with `camera_hit`, that is the first hit (else it is
+    /// traced); with `cache`, the path ends at its second surface vertex with the cached
+    /// reflected light there ([`crate::render::radiance_cache`]).
+    #[allow(clippy::too_many_arguments)]
     fn li_first(
         &self,
         origin: Vec3,
@@ -347,6 +512,8 @@ impl<'a> Renderer<'a> {
         rng: &mut SampleStream,
         first: &mut FirstHit,
         spread: Option<[Vec3; 2]>,
+        camera_hit: Option<Option<Hit>>,
+        cache: Option<&RadianceCache>,
     ) -> Vec3 {
         let scene = self.scene;
         let mut l = Vec3::ZERO;
@@ -359,7 +526,10 @@ impl<'a> Renderer<'a> {
         // light samples per vertex (splitting): MIS weighs N light samples against one BSDF sample
         let n_ls = s.light_samples.max(1) as f32;
         loop {
-            let hit = self.accel.intersect(o, d, 0.0, f32::INFINITY);
+            let hit = match camera_hit {
+                Some(h) if depth == 0 => h,
+                _ => self.accel.intersect(o, d, 0.0, f32::INFINITY),
+            };
             depth += 1; // this segment
             let Some(hit) = hit else {
                 // escaped: add the environment, MIS-weighted against environment sampling
@@ -400,6 +570,12 @@ impl<'a> Renderer<'a> {
                 l += clamp_after_camera(beta * le * w, depth, s.clamp);
             }
             if depth >= s.max_depth {
+                break;
+            }
+            if let Some(cache) = cache.filter(|_| depth == 2) {
+                let lattice = cache.lattice(hit.prim, sh.front, || self.fill_lattice(cache, hit.prim, sh.front));
+                let albedo = self.bsdf(hit.prim, sh.uv, None).albedo_hint();
+                l += clamp_after_camera(beta * albedo * lattice.at(hit.bary), depth + 1, s.clamp);
                 break;
             }
 
@@ -496,6 +672,9 @@ struct PixelFeatures {
     emission: Vec3,
     irradiance: Vec3,
 }
+
+/// Salt of the radiance cache's random streams (keeps them apart from the camera samples').
+const CACHE_SALT: u64 = 0x7ac4_e5c0_ffee_d00d;
 
 /// Smallest reflectance a pixel's reflected light is divided by.
 const MIN_REFLECTANCE: f32 = 1e-3;

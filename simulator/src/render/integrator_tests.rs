@@ -300,3 +300,100 @@ fn texture_filtering_steadies_the_reflectance_and_keeps_its_mean() {
     }
     assert!(spread[1] * 4.0 < spread[0], "albedo spread {spread:?}");
 }
+
+/// A closed diffuse room (inward cube, albedo 0.6) lit by a square ceiling lamp, with a smaller
+/// outward cube (albedo 0.3) standing in it, seen from inside: edges, shadows and interreflection.
+fn lit_room() -> (Scene, RenderSettings) {
+    let mut mesh = TriangleMesh::default();
+    cube(&mut mesh, 0, true);
+    // facing down, a little below the ceiling
+    let lamp = 0.98;
+    quad(
+        &mut mesh,
+        [
+            Vec3::new(-0.3, lamp, -0.3),
+            Vec3::new(0.3, lamp, -0.3),
+            Vec3::new(0.3, lamp, 0.3),
+            Vec3::new(-0.3, lamp, 0.3),
+        ],
+        1,
+    );
+    let mut inner = TriangleMesh::default();
+    cube(&mut inner, 2, false);
+    for p in &mut inner.positions {
+        *p = *p * 0.35 + Vec3::new(0.2, -0.65, -0.3);
+    }
+    mesh.append(&inner);
+    let materials = vec![lambert(0.6, 0.0), lambert(0.0, 12.0), lambert(0.3, 0.0)];
+    let cam = Camera::look_at(Vec3::new(-0.6, 0.3, 0.9), Vec3::new(0.2, -0.5, -0.3), Vec3::Y, 1.3);
+    let st = RenderSettings { width: 40, height: 30, spp: 8, max_depth: 5, seed: 5, ..RenderSettings::new(cam) };
+    (Scene { mesh, materials, ..Scene::default() }, st)
+}
+
+#[test]
+fn rasterised_camera_rays_give_the_traced_image_but_for_edge_samples() {
+    let (scene, st) = lit_room();
+    let r = Renderer::new(&scene);
+    let st = RenderSettings { feature_spp: 16, ..st };
+    let (img, f) = r.render_with_features(&st);
+    let traced = r.render(&st, None);
+    let same = img.pixels.iter().zip(&traced.pixels).filter(|(a, b)| a == b).count();
+    assert!(same * 1000 >= img.pixels.len() * 995, "{same} of {} pixels identical", img.pixels.len());
+    // nothing is left uncovered inside a closed room, and the depth buffer is the room's
+    assert_eq!(r.visibility(&st, 16).uncovered_fraction(), 0.0);
+    assert!(f.depth.iter().all(|&d| d > 0.0 && d < 4.0));
+}
+
+#[test]
+fn radiance_cache_is_exact_in_the_furnace() {
+    // every surface emits 1 and reflects half (Lambert: the cache's diffuse assumption holds):
+    // the expectation is the full paths' sum_{k < depth} 0.5^k
+    let scene = furnace_scene();
+    let r = Renderer::new(&scene);
+    for (depth, want) in [(3, 1.75), (5, 1.9375)] {
+        let st = RenderSettings { radiance_cache: 32, cache_spacing: 0.7, ..settings(32, depth) };
+        let m = r.render_with_features(&st).0.mean();
+        assert!((m - Vec3::splat(want)).abs().max_element() < 0.01 * want, "depth {depth}: {m} vs {want}");
+    }
+    // depth 2 (direct light only) never reaches a second bounce: no cache
+    assert!(r.radiance_cache(&settings(4, 2)).is_none());
+}
+
+#[test]
+fn radiance_cache_stays_close_to_full_paths_and_shortens_them() {
+    let (scene, st) = lit_room();
+    let r = Renderer::new(&scene);
+    let full = r.render(&RenderSettings { spp: 512, ..st.clone() }, None);
+    let st_cached = RenderSettings { spp: 512, radiance_cache: 64, cache_spacing: 0.25, ..st.clone() };
+    let cached = r.render_with_features(&st_cached).0;
+    let (mf, mc) = (luminance(full.mean()), luminance(cached.mean()));
+    assert!((mc - mf).abs() < 0.01 * mf, "mean {mc} vs full paths {mf}");
+    let rel = rms(&cached.pixels, &full.pixels) / mf as f64;
+    assert!(rel < 0.02, "relative rms difference {rel}");
+    // it filled lattices for the sides paths reached: the room's inner sides, not the outsides
+    let cache = r.radiance_cache(&st_cached).expect("same parameters: the same cache");
+    let (sides, points) = cache.filled();
+    assert!(sides > 0 && sides <= scene.mesh.len() && points >= 3 * sides, "{sides} sides, {points} points");
+}
+
+#[test]
+fn radiance_cache_gives_the_same_bytes_whatever_the_threads_or_frame_order() {
+    let (scene, st) = lit_room();
+    let st = RenderSettings { radiance_cache: 8, cache_spacing: 0.3, ..st };
+    let frame1 = RenderSettings {
+        frame: 1,
+        camera: Camera::look_at(Vec3::new(-0.5, 0.2, 0.9), Vec3::ZERO, Vec3::Y, 1.3),
+        ..st.clone()
+    };
+    let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+    // a fresh renderer (empty cache) rendering frame 1 alone, on one thread
+    let alone = {
+        let r = Renderer::new(&scene);
+        pool(1).install(|| r.render_with_features(&frame1))
+    };
+    // another renders frame 0 first (filling lattices in another order), on two threads
+    let r = Renderer::new(&scene);
+    pool(2).install(|| r.render_with_features(&st));
+    let after = pool(2).install(|| r.render_with_features(&frame1));
+    assert_eq!(alone, after);
+}

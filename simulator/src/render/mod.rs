@@ -3,6 +3,8 @@
 //! - [`sampler`]: where a camera sample's numbers come from (independent or Owen-scrambled Sobol).
 //! - [`sampling`]: the per-sample RNG, warps, 1D/2D distributions, frames, MIS weights.
 //! - [`accel`]: the obvhs BVH over the scene's triangles; closest-hit and shadow queries.
+//! - [`raster`]: primary visibility by rasterisation (which triangle each camera sample sees).
+//! - [`radiance_cache`]: a world-space cache of reflected light that ends paths early.
 //! - [`bsdf`]: Lambert + GGX metallic-roughness (sample / eval / pdf).
 //! - [`lights`]: emissive triangles sampled by power, punctual lights, environment.
 //! - [`integrator`]: the unidirectional path tracer with next-event estimation and MIS.
@@ -18,6 +20,8 @@ pub mod denoise;
 pub mod film;
 pub mod integrator;
 pub mod lights;
+pub mod radiance_cache;
+pub mod raster;
 pub mod sampler;
 pub mod sampling;
 pub mod temporal;

@@ -176,6 +176,49 @@ impl SampleStream {
         SampleStream { kind, rng, key, index: sample, set: 0 }
     }
 
+    /// Step past the next four numbers without computing them where that is possible (the
+    /// stream then continues as if [`SampleStream::next_4d`] had been called).
+    #[inline]
+    pub fn skip_4d(&mut self) {
+        match self.kind {
+            SamplerKind::Independent => {
+                self.next_4d();
+            }
+            SamplerKind::Sobol => self.set += 1,
+        }
+    }
+
+    /// The first two of the next four numbers ([`SampleStream::next_4d`]'s components 0 and 1;
+    /// the stream moves on past all four), for film positions.
+    #[inline]
+    pub fn next_2d(&mut self) -> [f32; 2] {
+        match self.kind {
+            SamplerKind::Independent => {
+                let c = self.next_4d();
+                [c[0], c[1]]
+            }
+            SamplerKind::Sobol => {
+                let set = self.set;
+                self.set += 1;
+                let (y, seeds) = self.sobol_set(set);
+                [0, 1].map(|d| to_unit(laine_karras(sobol_reversed(y, d), seeds[d]).reverse_bits()))
+            }
+        }
+    }
+
+    /// The shuffled, bit-reversed index and the dimension scrambles of dimension set `set`.
+    #[inline]
+    fn sobol_set(&self, set: u32) -> (u32, [u32; 4]) {
+        // per (pixel, set): an index shuffle and four dimension scrambles, from two hashes
+        let h = mix64(self.key ^ (set as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        let g = mix64(h);
+        let seeds = [h as u32, (h >> 32) as u32, g as u32, (g >> 32) as u32];
+        // all in the bit-reversed domain: y = reverse(shuffled index), and
+        // owen_scramble(sobol(reverse(y)), s) = reverse(laine_karras(sobol_reversed(y), s))
+        let y = laine_karras(self.index.reverse_bits(), seeds[0] ^ seeds[2].rotate_left(16));
+        (y, seeds)
+    }
+
     /// The next four numbers in [0, 1). With Sobol, components 0 and 1 are the best stratified
     /// pair: put 2D warps there.
     #[inline]
@@ -187,13 +230,7 @@ impl SampleStream {
                 [self.rng.next_f32(), self.rng.next_f32(), self.rng.next_f32(), self.rng.next_f32()]
             }
             SamplerKind::Sobol => {
-                // per (pixel, set): an index shuffle and four dimension scrambles, from two hashes
-                let h = mix64(self.key ^ (set as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15));
-                let g = mix64(h);
-                let seeds = [h as u32, (h >> 32) as u32, g as u32, (g >> 32) as u32];
-                // all in the bit-reversed domain: y = reverse(shuffled index), and
-                // owen_scramble(sobol(reverse(y)), s) = reverse(laine_karras(sobol_reversed(y), s))
-                let y = laine_karras(self.index.reverse_bits(), seeds[0] ^ seeds[2].rotate_left(16));
+                let (y, seeds) = self.sobol_set(set);
                 let mut out = [0.0; 4];
                 for (d, o) in out.iter_mut().enumerate() {
                     *o = to_unit(laine_karras(sobol_reversed(y, d), seeds[d]).reverse_bits());
@@ -233,6 +270,25 @@ mod tests {
                     owen_scramble(sobol(shuffled, d), seed ^ 1)
                 );
             }
+        }
+    }
+
+    #[test]
+    fn skipping_a_set_continues_the_stream() {
+        for kind in [SamplerKind::Independent, SamplerKind::Sobol] {
+            for i in 0..16 {
+                let mut a = SampleStream::new(kind, 0x1234_5678 + i as u64, i);
+                let mut b = a.clone();
+                a.next_4d();
+                b.skip_4d();
+                assert_eq!(a.next_4d(), b.next_4d(), "{kind:?}");
+                assert_eq!(a.next_4d(), b.next_4d(), "{kind:?}");
+            }
+            // next_2d: the first two of next_4d's numbers, and the same stream after them
+            let (mut a, mut b) = (SampleStream::new(kind, 99, 3), SampleStream::new(kind, 99, 3));
+            let c = a.next_4d();
+            assert_eq!(b.next_2d(), [c[0], c[1]], "{kind:?}");
+            assert_eq!(a.next_4d(), b.next_4d(), "{kind:?}");
         }
     }
 

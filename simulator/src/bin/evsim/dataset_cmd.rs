@@ -86,6 +86,10 @@ pub struct OverrideArgs {
     /// (0 = off).
     #[arg(long)]
     pub texture_filter: Option<f32>,
+    /// Override [dataset] radiance_cache: paths per point of the radiance cache that ends paths
+    /// at their second bounce (0 = off).
+    #[arg(long)]
+    pub radiance_cache: Option<u32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -123,6 +127,7 @@ impl OverrideArgs {
             temporal_radius: self.temporal_radius,
             feature_spp: self.feature_spp,
             texture_filter: self.texture_filter,
+            radiance_cache: self.radiance_cache,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,

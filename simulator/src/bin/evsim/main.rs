@@ -189,6 +189,8 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         light_samples: 1,
         feature_spp: 0,
         texture_filter: args.texture_filter,
+        radiance_cache: 0,
+        cache_spacing: 0.0,
     })
 }
 

@@ -34,8 +34,12 @@ pub struct SequenceRenderer<'p, 'r> {
     pub renders: usize,
     /// Wall time spent rendering.
     pub render_time: Duration,
+    /// Of `render_time`, the part spent rasterising the camera rays' visibility.
+    pub raster_time: Duration,
     /// Wall time spent filtering (temporal window and spatial filter).
     pub denoise_time: Duration,
+    /// Of `denoise_time`, the part spent in the temporal window.
+    pub gather_time: Duration,
 }
 
 impl<'p, 'r> SequenceRenderer<'p, 'r> {
@@ -52,7 +56,9 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             window: VecDeque::new(),
             renders: 0,
             render_time: Duration::ZERO,
+            raster_time: Duration::ZERO,
             denoise_time: Duration::ZERO,
+            gather_time: Duration::ZERO,
         }
     }
 
@@ -80,6 +86,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         debug_assert_eq!(window[center].0, k);
         let frames: Vec<&SequenceFrame> = window.iter().map(|(_, f)| f).collect();
         let (img, features) = gather(&frames, center, &self.temporal);
+        self.gather_time += t.elapsed();
         let out = denoise(&img, &features, &DenoiseParams::default());
         self.denoise_time += t.elapsed();
         Ok(out)
@@ -101,7 +108,10 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         while next <= hi {
             let settings = self.settings(next)?;
             let t = Instant::now();
-            let (image, features) = self.renderer.render_with_features(&settings);
+            let vis = self.renderer.visibility(&settings, settings.feature_spp.max(settings.spp));
+            self.raster_time += t.elapsed();
+            let (image, features) = self.renderer.shade_with_features(&settings, &vis);
+            drop(vis);
             self.renders += 1;
             self.render_time += t.elapsed();
             self.window.push_back((next, SequenceFrame::new(settings.camera, image, features)));

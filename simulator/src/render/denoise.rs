@@ -76,61 +76,294 @@ pub fn denoise(img: &Image, features: &Features, p: &DenoiseParams) -> Image {
         features.width == img.width && features.height == img.height && features.albedo.len() == w * h,
         "features of a different render"
     );
-    let albedo: Vec<Vec3> = features.albedo.iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
+    let n = w * h;
+    // the guides, one plane per number so that a row's taps vectorise
+    let guides = Guides::new(features, w, h);
     // only reflected light is filtered: what the camera sees directly (emitters, the sky) is
     // taken out first and added back unfiltered
-    let mut irr: Vec<Vec3> = features.irradiance.clone();
-    let mut var: Vec<f32> =
-        features.variance.iter().zip(&albedo).map(|(v, a)| v / luminance(*a).max(MIN_ALBEDO).powi(2)).collect();
-    let grad = depth_gradients(&features.depth, w, h);
-    let mut next_irr = vec![Vec3::ZERO; w * h];
-    let mut next_var = vec![0.0f32; w * h];
-    for k in 0..p.iterations {
-        let step = 1usize << k;
-        let blurred = blur3(&var, w, h);
-        let lum: Vec<f32> = irr.iter().map(|c| luminance(*c)).collect();
-        let (irr_in, var_in) = (&irr, &var);
-        next_irr.par_chunks_mut(w).zip(next_var.par_chunks_mut(w)).enumerate().for_each(|(y, (row_irr, row_var))| {
-            for x in 0..w {
-                let i = y * w + x;
-                let (zp, np, lp) = (features.depth[i], features.normal[i], lum[i]);
-                let (gx, gy) = grad[i];
-                let inv_l = 1.0 / (p.sigma_luminance * blurred[i].max(0.0).sqrt() + 1e-6);
-                let z_floor = 1e-3 * zp.min(MISS_DEPTH);
-                let (mut c, mut v, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
-                for (j, kj) in KERNEL.iter().enumerate() {
-                    let Some(qy) = offset(y, j, step, h) else { continue };
-                    let dy = (qy as f32 - y as f32).abs();
-                    for (i2, ki) in KERNEL.iter().enumerate() {
-                        let Some(qx) = offset(x, i2, step, w) else { continue };
-                        let q = qy * w + qx;
-                        let weight = if q == i {
-                            ki * kj
-                        } else {
-                            let dx = (qx as f32 - x as f32).abs();
-                            let dz = (zp - features.depth[q]).abs();
-                            let reach = p.sigma_depth * (gx * dx + gy * dy) + z_floor;
-                            let arg = -dz / reach - (lp - lum[q]).abs() * inv_l;
-                            if arg < -20.0 {
-                                continue; // below 2e-9 of the centre tap
-                            }
-                            ki * kj * normal_weight(np.dot(features.normal[q]), p.sigma_normal) * fast_exp(arg)
-                        };
-                        c += irr_in[q] * weight;
-                        v += var_in[q] * weight * weight;
-                        wsum += weight;
-                    }
-                }
-                // the centre tap always has weight, so wsum > 0
-                row_irr[x] = c / wsum;
-                row_var[x] = v / (wsum * wsum);
+    let mut irr = Planes::new(n);
+    irr.chunks_mut(w)
+        .zip(features.irradiance.par_chunks(w))
+        .zip(features.variance.par_chunks(w))
+        .zip(features.albedo.par_chunks(w))
+        .for_each(|(((row, ir), v), a)| {
+            for x in 0..ir.len() {
+                let (c, a) = (ir[x], a[x].max(Vec3::splat(MIN_ALBEDO)));
+                (row.r[x], row.g[x], row.b[x]) = (c.x, c.y, c.z);
+                row.var[x] = v[x] / luminance(a).max(MIN_ALBEDO).powi(2);
             }
         });
-        std::mem::swap(&mut irr, &mut next_irr);
-        std::mem::swap(&mut var, &mut next_var);
+    let mut next = Planes::new(n);
+    let mut lum = vec![0.0f32; n];
+    let mut inv_l = vec![0.0f32; n];
+    for k in 0..p.iterations {
+        let step = 1usize << k;
+        // per pixel: luminance, and the luminance stop from the 3x3-blurred variance
+        lum.par_chunks_mut(w).zip(inv_l.par_chunks_mut(w)).enumerate().for_each(|(y, (lum_row, inv_row))| {
+            for x in 0..w {
+                let i = y * w + x;
+                lum_row[x] = luminance(Vec3::new(irr.r[i], irr.g[i], irr.b[i]));
+                inv_row[x] = 1.0 / (p.sigma_luminance * blur3_at(&irr.var, w, h, x, y).max(0.0).sqrt() + 1e-6);
+            }
+        });
+        let (src, lum, inv_l, g) = (&irr, &lum, &inv_l, &guides);
+        next.chunks_mut(w).enumerate().for_each(|(y, row)| atrous_row(src, lum, inv_l, g, p, y, step, row));
+        std::mem::swap(&mut irr, &mut next);
     }
-    let pixels = irr.iter().zip(&features.emission).zip(&features.albedo).map(|((c, e), a)| *c * *a + *e).collect();
+    let pixels = (0..n)
+        .into_par_iter()
+        .map(|i| Vec3::new(irr.r[i], irr.g[i], irr.b[i]) * features.albedo[i] + features.emission[i])
+        .collect();
     Image { width: img.width, height: img.height, pixels }
+}
+
+/// Demodulated light and its variance, one plane per number.
+struct Planes {
+    r: Vec<f32>,
+    g: Vec<f32>,
+    b: Vec<f32>,
+    var: Vec<f32>,
+}
+
+/// One row of [`Planes`], to write.
+struct PlanesRow<'a> {
+    r: &'a mut [f32],
+    g: &'a mut [f32],
+    b: &'a mut [f32],
+    var: &'a mut [f32],
+}
+
+impl Planes {
+    fn new(n: usize) -> Planes {
+        Planes { r: vec![0.0; n], g: vec![0.0; n], b: vec![0.0; n], var: vec![0.0; n] }
+    }
+
+    /// The rows of `w` pixels, in parallel.
+    fn chunks_mut(&mut self, w: usize) -> impl IndexedParallelIterator<Item = PlanesRow<'_>> {
+        self.r
+            .par_chunks_mut(w)
+            .zip(self.g.par_chunks_mut(w))
+            .zip(self.b.par_chunks_mut(w))
+            .zip(self.var.par_chunks_mut(w))
+            .map(|(((r, g), b), var)| PlanesRow { r, g, b, var })
+    }
+}
+
+/// The edge-stopping guides: shading normal, first-hit distance and its gradients.
+struct Guides {
+    nx: Vec<f32>,
+    ny: Vec<f32>,
+    nz: Vec<f32>,
+    z: Vec<f32>,
+    gx: Vec<f32>,
+    gy: Vec<f32>,
+}
+
+impl Guides {
+    fn new(f: &Features, w: usize, h: usize) -> Guides {
+        let z = &f.depth;
+        // per-pixel |dz/dx| and |dz/dy|: the smaller of the one-sided differences, so that a
+        // pixel on a silhouette takes the slope of its own surface, not the jump to the background
+        let one_sided = |i: usize, a: Option<usize>, b: Option<usize>| {
+            let d = |j: Option<usize>| j.map(|j| (z[j] - z[i]).abs()).unwrap_or(f32::INFINITY);
+            let g = d(a).min(d(b));
+            if g.is_finite() {
+                g
+            } else {
+                0.0
+            }
+        };
+        let (gx, gy) = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let gx = one_sided(i, (x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1));
+                let gy = one_sided(i, (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w));
+                (gx, gy)
+            })
+            .unzip();
+        Guides {
+            nx: f.normal.iter().map(|n| n.x).collect(),
+            ny: f.normal.iter().map(|n| n.y).collect(),
+            nz: f.normal.iter().map(|n| n.z).collect(),
+            z: z.clone(),
+            gx,
+            gy,
+        }
+    }
+}
+
+/// One À-Trous pass over row `y` with taps `step` pixels apart, from `src` into `out`. The 25
+/// taps are visited in the same order for every pixel; a tap's pixels are a contiguous run, so
+/// the inner loops have no bounds to test and vectorise.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn atrous_row(
+    src: &Planes,
+    lum: &[f32],
+    inv_l: &[f32],
+    g: &Guides,
+    p: &DenoiseParams,
+    y: usize,
+    step: usize,
+    out: PlanesRow,
+) {
+    let (w, h) = (out.r.len(), lum.len() / out.r.len());
+    let row = y * w;
+    let z_floor: Vec<f32> = g.z[row..row + w].iter().map(|z| 1e-3 * z.min(MISS_DEPTH)).collect();
+    let mut acc = Acc { r: vec![0.0; w], g: vec![0.0; w], b: vec![0.0; w], v: vec![0.0; w], wsum: vec![0.0; w] };
+    for (j, kj) in KERNEL.iter().enumerate() {
+        let Some(qy) = offset(y, j, step, h) else { continue };
+        let dy = (qy as f32 - y as f32).abs();
+        for (i2, ki) in KERNEL.iter().enumerate() {
+            let dx = (i2 as isize - 2) * step as isize;
+            // the pixels x0..x1 whose tap x + dx lies in the row
+            let (x0, x1) = ((-dx).max(0) as usize, (w as isize - dx.max(0)).max(0) as usize);
+            if x0 >= x1 {
+                continue;
+            }
+            let (c0, c1) = (row + x0, row + x1);
+            let (q0, q1) = (((qy * w + x0) as isize + dx) as usize, ((qy * w + x1) as isize + dx) as usize);
+            let tap = Tap { r: &src.r[q0..q1], g: &src.g[q0..q1], b: &src.b[q0..q1], var: &src.var[q0..q1] };
+            let acc = acc.range(x0, x1);
+            if dx == 0 && qy == y {
+                // the centre tap: no edge stops
+                acc.add(&tap, |_| ki * kj);
+                continue;
+            }
+            let centre = GuideRun::new(g, lum, c0, c1);
+            let other = GuideRun::new(g, lum, q0, q1);
+            let stops = Stops {
+                kk: ki * kj,
+                dx: dx.unsigned_abs() as f32,
+                dy,
+                inv_l: &inv_l[c0..c1],
+                z_floor: &z_floor[x0..x1],
+                sigma_depth: p.sigma_depth,
+            };
+            // below -20 the weight is under 2e-9 of the centre tap's: none
+            if p.sigma_normal == 128.0 {
+                acc.add(&tap, |k| {
+                    let (arg, cos) = stops.at(&centre, &other, k);
+                    let weight = stops.kk * pow_128(cos) * fast_exp(arg);
+                    if arg < -20.0 {
+                        0.0
+                    } else {
+                        weight
+                    }
+                });
+            } else {
+                acc.add(&tap, |k| {
+                    let (arg, cos) = stops.at(&centre, &other, k);
+                    if arg < -20.0 {
+                        0.0
+                    } else {
+                        stops.kk * cos.max(0.0).powf(p.sigma_normal) * fast_exp(arg)
+                    }
+                });
+            }
+        }
+    }
+    // the centre tap always has weight, so wsum > 0
+    for x in 0..w {
+        out.r[x] = acc.r[x] / acc.wsum[x];
+        out.g[x] = acc.g[x] / acc.wsum[x];
+        out.b[x] = acc.b[x] / acc.wsum[x];
+        out.var[x] = acc.v[x] / (acc.wsum[x] * acc.wsum[x]);
+    }
+}
+
+/// The guides of a run of pixels.
+struct GuideRun<'a> {
+    z: &'a [f32],
+    lum: &'a [f32],
+    gx: &'a [f32],
+    gy: &'a [f32],
+    n: [&'a [f32]; 3],
+}
+
+impl<'a> GuideRun<'a> {
+    fn new(g: &'a Guides, lum: &'a [f32], i0: usize, i1: usize) -> GuideRun<'a> {
+        GuideRun {
+            z: &g.z[i0..i1],
+            lum: &lum[i0..i1],
+            gx: &g.gx[i0..i1],
+            gy: &g.gy[i0..i1],
+            n: [&g.nx[i0..i1], &g.ny[i0..i1], &g.nz[i0..i1]],
+        }
+    }
+}
+
+/// What one tap's edge stops need besides the guides.
+struct Stops<'a> {
+    /// The tap's kernel weight.
+    kk: f32,
+    /// The tap's offsets in pixels.
+    dx: f32,
+    dy: f32,
+    /// Per centre pixel: the luminance stop's scale and the depth stop's floor.
+    inv_l: &'a [f32],
+    z_floor: &'a [f32],
+    sigma_depth: f32,
+}
+
+impl Stops<'_> {
+    /// The `k`-th pixel's exponent of the depth and luminance stops, and the normals' cosine.
+    #[inline(always)]
+    fn at(&self, c: &GuideRun, q: &GuideRun, k: usize) -> (f32, f32) {
+        let dz = (c.z[k] - q.z[k]).abs();
+        let reach = self.sigma_depth * (c.gx[k] * self.dx + c.gy[k] * self.dy) + self.z_floor[k];
+        let arg = -dz / reach - (c.lum[k] - q.lum[k]).abs() * self.inv_l[k];
+        let cos = (c.n[0][k] * q.n[0][k]) + (c.n[1][k] * q.n[1][k]) + (c.n[2][k] * q.n[2][k]);
+        (arg, cos)
+    }
+}
+
+/// One tap's source pixels for a run of centre pixels.
+struct Tap<'a> {
+    r: &'a [f32],
+    g: &'a [f32],
+    b: &'a [f32],
+    var: &'a [f32],
+}
+
+/// A row's weighted sums: light, variance (weights squared) and weights.
+struct Acc<T> {
+    r: T,
+    g: T,
+    b: T,
+    v: T,
+    wsum: T,
+}
+
+impl Acc<Vec<f32>> {
+    fn range(&mut self, x0: usize, x1: usize) -> Acc<&mut [f32]> {
+        Acc {
+            r: &mut self.r[x0..x1],
+            g: &mut self.g[x0..x1],
+            b: &mut self.b[x0..x1],
+            v: &mut self.v[x0..x1],
+            wsum: &mut self.wsum[x0..x1],
+        }
+    }
+}
+
+impl Acc<&mut [f32]> {
+    /// Add `tap` with the weight `weight(k)` for the `k`-th pixel of the run.
+    #[inline(always)]
+    fn add(self, tap: &Tap, weight: impl Fn(usize) -> f32) {
+        let m = self.r.len();
+        let (r, g, b, v, wsum) = (self.r, &mut self.g[..m], &mut self.b[..m], &mut self.v[..m], &mut self.wsum[..m]);
+        let (tr, tg, tb, tv) = (&tap.r[..m], &tap.g[..m], &tap.b[..m], &tap.var[..m]);
+        for k in 0..m {
+            let weight = weight(k);
+            r[k] += tr[k] * weight;
+            g[k] += tg[k] * weight;
+            b[k] += tb[k] * weight;
+            v[k] += tv[k] * weight * weight;
+            wsum[k] += weight;
+        }
+    }
 }
 
 /// Index `c + (tap - 2) * step` if it lies in `0..n`.
@@ -143,7 +376,7 @@ fn offset(c: usize, tap: usize, step: usize, n: usize) -> Option<usize> {
 /// `e^x` for `x` in [-20, 0] to about 1e-4 relative (a weight, not a measurement):
 /// `2^(x log2 e)` with the integer part in the exponent bits and a degree-4 polynomial for the
 /// fraction. Pure arithmetic, so the same on every machine and thread.
-#[inline]
+#[inline(always)]
 fn fast_exp(x: f32) -> f32 {
     let t = x * std::f32::consts::LOG2_E;
     let fl = t.floor();
@@ -151,65 +384,33 @@ fn fast_exp(x: f32) -> f32 {
     let g = t - fl - 0.5;
     let p = std::f32::consts::SQRT_2
         * (1.0 + g * (std::f32::consts::LN_2 + g * (0.240_226_5 + g * (0.055_504_1 + g * 0.009_618_1))));
-    let bits = ((fl as i32 + 127) as u32) << 23;
+    let bits = ((fl as i32).wrapping_add(127) as u32) << 23;
     f32::from_bits(bits) * p
 }
 
-/// `max(0, cos)^exponent`, by repeated squaring when the exponent is a power of two (the
-/// default 128: seven multiplications instead of a `powf`).
-#[inline]
-fn normal_weight(cos: f32, exponent: f32) -> f32 {
-    let c = cos.max(0.0);
-    if exponent == 128.0 {
-        let mut x = c;
-        for _ in 0..7 {
-            x *= x;
-        }
-        x
-    } else {
-        c.powf(exponent)
+/// `max(0, cos)^128` by seven squarings (the default normal stop) instead of a `powf`.
+#[inline(always)]
+fn pow_128(cos: f32) -> f32 {
+    let mut x = cos.max(0.0);
+    for _ in 0..7 {
+        x *= x;
     }
+    x
 }
 
-/// Per-pixel |dz/dx| and |dz/dy|: the smaller of the one-sided differences, so that a pixel on a
-/// silhouette takes the slope of its own surface, not the jump to the background.
-fn depth_gradients(z: &[f32], w: usize, h: usize) -> Vec<(f32, f32)> {
-    (0..w * h)
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            let one_sided = |a: Option<usize>, b: Option<usize>| {
-                let d = |j: Option<usize>| j.map(|j| (z[j] - z[i]).abs()).unwrap_or(f32::INFINITY);
-                let g = d(a).min(d(b));
-                if g.is_finite() {
-                    g
-                } else {
-                    0.0
-                }
-            };
-            let gx = one_sided((x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1));
-            let gy = one_sided((y > 0).then(|| i - w), (y + 1 < h).then(|| i + w));
-            (gx, gy)
-        })
-        .collect()
-}
-
-/// 3x3 binomial blur (edges clamped), for a steadier noise estimate.
-fn blur3(v: &[f32], w: usize, h: usize) -> Vec<f32> {
+/// The 3x3 binomial blur (edges clamped) of `v` at pixel (x, y), for a steadier noise estimate.
+#[inline]
+fn blur3_at(v: &[f32], w: usize, h: usize, x: usize, y: usize) -> f32 {
     const K: [f32; 3] = [0.25, 0.5, 0.25];
-    (0..w * h)
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            let mut s = 0.0;
-            for (dy, ky) in K.iter().enumerate() {
-                let yy = (y + dy).saturating_sub(1).min(h - 1);
-                for (dx, kx) in K.iter().enumerate() {
-                    let xx = (x + dx).saturating_sub(1).min(w - 1);
-                    s += ky * kx * v[yy * w + xx];
-                }
-            }
-            s
-        })
-        .collect()
+    let mut s = 0.0;
+    for (dy, ky) in K.iter().enumerate() {
+        let yy = (y + dy).saturating_sub(1).min(h - 1);
+        for (dx, kx) in K.iter().enumerate() {
+            let xx = (x + dx).saturating_sub(1).min(w - 1);
+            s += ky * kx * v[yy * w + xx];
+        }
+    }
+    s
 }
 
 #[cfg(test)]
@@ -344,6 +545,91 @@ mod tests {
                 .install(|| run(&img, &f, &DenoiseParams::default()))
         };
         assert_eq!(run(1), run(3));
+    }
+
+    /// The filter as a plain per-pixel loop over its 25 taps (what [`denoise`] computes, row by
+    /// row and plane by plane).
+    fn denoise_per_pixel(features: &Features, p: &DenoiseParams) -> Vec<Vec3> {
+        let (w, h) = (features.width as usize, features.height as usize);
+        let albedo: Vec<Vec3> = features.albedo.iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
+        let mut irr = features.irradiance.clone();
+        let mut var: Vec<f32> =
+            features.variance.iter().zip(&albedo).map(|(v, a)| v / luminance(*a).max(MIN_ALBEDO).powi(2)).collect();
+        let g = Guides::new(features, w, h);
+        for k in 0..p.iterations {
+            let step = 1usize << k;
+            let lum: Vec<f32> = irr.iter().map(|c| luminance(*c)).collect();
+            let (mut next_irr, mut next_var) = (irr.clone(), var.clone());
+            for y in 0..h {
+                for x in 0..w {
+                    let i = y * w + x;
+                    let (zp, np, lp) = (features.depth[i], features.normal[i], lum[i]);
+                    let inv_l = 1.0 / (p.sigma_luminance * blur3_at(&var, w, h, x, y).max(0.0).sqrt() + 1e-6);
+                    let (mut c, mut v, mut wsum) = (Vec3::ZERO, 0.0f32, 0.0f32);
+                    for (j, kj) in KERNEL.iter().enumerate() {
+                        let Some(qy) = offset(y, j, step, h) else { continue };
+                        let dy = (qy as f32 - y as f32).abs();
+                        for (i2, ki) in KERNEL.iter().enumerate() {
+                            let Some(qx) = offset(x, i2, step, w) else { continue };
+                            let q = qy * w + qx;
+                            let weight = if q == i {
+                                ki * kj
+                            } else {
+                                let dx = (qx as f32 - x as f32).abs();
+                                let dz = (zp - features.depth[q]).abs();
+                                let reach = p.sigma_depth * (g.gx[i] * dx + g.gy[i] * dy) + 1e-3 * zp.min(MISS_DEPTH);
+                                let arg = -dz / reach - (lp - lum[q]).abs() * inv_l;
+                                if arg < -20.0 {
+                                    continue;
+                                }
+                                let cos = np.dot(features.normal[q]);
+                                let nw = if p.sigma_normal == 128.0 {
+                                    pow_128(cos)
+                                } else {
+                                    cos.max(0.0).powf(p.sigma_normal)
+                                };
+                                ki * kj * nw * fast_exp(arg)
+                            };
+                            c += irr[q] * weight;
+                            v += var[q] * weight * weight;
+                            wsum += weight;
+                        }
+                    }
+                    next_irr[i] = c / wsum;
+                    next_var[i] = v / (wsum * wsum);
+                }
+            }
+            (irr, var) = (next_irr, next_var);
+        }
+        irr.iter().zip(&features.emission).zip(&features.albedo).map(|((c, e), a)| *c * *a + *e).collect()
+    }
+
+    #[test]
+    fn rows_and_planes_give_the_per_pixel_loop_bit_for_bit() {
+        // a random scene: depth steps, tilted normals, emitters, texture and noise
+        let (w, h) = (45, 29);
+        let mut rng = Rng::new(11, 3);
+        let mut f = plane(w, h, 2.0, Vec3::splat(0.4), 0.0);
+        for i in 0..(w * h) as usize {
+            f.depth[i] = if rng.next_f32() < 0.1 { MISS_DEPTH } else { 1.0 + 3.0 * rng.next_f32() };
+            f.normal[i] = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 1.0).normalize();
+            f.albedo[i] = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.9;
+            f.variance[i] = rng.next_f32() * 0.05;
+            f.irradiance[i] = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0;
+            if rng.next_f32() < 0.05 {
+                f.emission[i] = Vec3::splat(3.0);
+            }
+        }
+        let img = Image { width: w, height: h, pixels: vec![Vec3::ZERO; (w * h) as usize] };
+        for p in
+            [DenoiseParams::default(), DenoiseParams { sigma_normal: 60.0, iterations: 3, ..DenoiseParams::default() }]
+        {
+            let fast = denoise(&img, &f, &p).pixels;
+            let slow = denoise_per_pixel(&f, &p);
+            for (i, (a, b)) in fast.iter().zip(&slow).enumerate() {
+                assert!(a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits), "pixel {i}: {a} vs {b}");
+            }
+        }
     }
 
     #[test]

@@ -144,14 +144,20 @@ impl<'a> Renderer<'a> {
     /// [`crate::render::raster::NEAR`]). Paths use the radiance cache as in
     /// [`Renderer::render`].
     pub fn render_with_features(&self, settings: &RenderSettings) -> (Image, Features) {
+        let vis = self.visibility(settings, settings.feature_spp.max(settings.spp));
+        self.shade_with_features(settings, &vis)
+    }
+
+    /// The shading half of [`Renderer::render_with_features`]: `vis` is
+    /// [`Renderer::visibility`] of the same settings with `max(spp, feature_spp)` samples.
+    pub fn shade_with_features(&self, settings: &RenderSettings, vis: &Visibility) -> (Image, Features) {
         let (w, h) = (settings.width, settings.height);
         let feature_spp = settings.feature_spp.max(settings.spp);
-        let vis = self.visibility(settings, feature_spp);
         let cache = self.radiance_cache(settings);
         let cache = cache.as_deref();
         let rows: Vec<Vec<(Vec3, PixelFeatures)>> = (0..h)
             .into_par_iter()
-            .map(|y| (0..w).map(|x| self.pixel_with_features(settings, x, y, feature_spp, Some(&vis), cache)).collect())
+            .map(|y| (0..w).map(|x| self.pixel_with_features(settings, x, y, feature_spp, Some(vis), cache)).collect())
             .collect();
         let mut img = Image::new(w, h);
         let mut f = Features::new(w, h);

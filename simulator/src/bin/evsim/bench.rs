@@ -11,6 +11,12 @@
 //! paper's settings) into a fresh temporary folder and cache, and prints per stage the wall
 //! time, frames/s and peak memory, and the total.
 //!
+//! `evsim bench frames [SCENE]`: the frame stage of a dataset on a short segment: renders the
+//! temporal window around `--frames` consecutive frames (at the scene's dataset settings), then
+//! prints per frame the medians of rasterising, shading, the temporal window and the spatial
+//! filter, and the frame stage of the whole sequence they project to. Quicker than `bench
+//! dataset` for comparing two builds or settings side by side.
+//!
 //! `evsim bench events`: the event model over 1000 frames of 600x400 of a synthetic moving
 //! texture (1000 FPS), events into a counting sink, once ideal and once with every
 //! non-ideality on. Prints the model time (frame generation excluded), the wall time, M pixel
@@ -49,6 +55,26 @@ pub enum BenchCommand {
     /// A whole default-size dataset (1 s at 1000 FPS, 600x400, default spp): time, frames/s and
     /// peak memory per stage.
     Dataset(DatasetBench),
+    /// Per-frame cost of a dataset's frames (raster, shading, temporal window, spatial filter)
+    /// on a short segment.
+    Frames(FramesBench),
+}
+
+/// Options of `evsim bench frames`.
+#[derive(Args, Debug)]
+pub struct FramesBench {
+    /// The dataset scene.
+    #[arg(default_value = "scenes/factory/scene.toml")]
+    pub scene: PathBuf,
+    /// Frames timed (after the first, which fills the window and is reported apart).
+    #[arg(long, default_value_t = 6)]
+    pub frames: usize,
+    /// First frame of the segment (ms from the trajectory's start; default: its middle).
+    #[arg(long)]
+    pub start_ms: Option<f64>,
+    /// Settings overrides.
+    #[command(flatten)]
+    pub overrides: crate::dataset_cmd::OverrideArgs,
 }
 
 /// Options of `evsim bench dataset`.
@@ -105,7 +131,73 @@ pub fn run(what: BenchCommand) -> Result<()> {
         BenchCommand::Render(b) => render_bench(&b),
         BenchCommand::Events(b) => events_bench(&b),
         BenchCommand::Dataset(b) => dataset_bench(&b),
+        BenchCommand::Frames(b) => frames_bench(&b),
     }
+}
+
+fn frames_bench(b: &FramesBench) -> Result<()> {
+    use simulator::dataset::sequence::SequenceRenderer;
+    use simulator::dataset::Plan;
+    let plan = Plan::resolve(&b.scene, &b.overrides.resolve())?;
+    let (c, n) = (&plan.config, plan.clock.n_frames);
+    anyhow::ensure!(b.frames >= 1, "--frames must be at least 1");
+    let start = match b.start_ms {
+        Some(ms) => plan.clock.frame_at((ms * 1e6).round() as i64).context("--start-ms is not a frame time")?,
+        None => n / 2,
+    };
+    anyhow::ensure!(start + b.frames < n, "the segment ends after the sequence's {n} frames");
+    println!(
+        "frames bench: {} frames {}..={} of {} ({}x{}, {} spp, {} feature rays, radius {}, cache {}), {} threads",
+        b.scene.display(),
+        start,
+        start + b.frames,
+        n,
+        c.width,
+        c.height,
+        c.spp,
+        c.feature_spp,
+        if c.denoise { c.temporal_radius } else { 0 },
+        c.radiance_cache,
+        rayon::current_num_threads()
+    );
+    let t = Instant::now();
+    let renderer = Renderer::with_preset(&plan.scene, c.bvh);
+    println!("  BVH build {:.2} s", t.elapsed().as_secs_f64());
+    let mut seq = SequenceRenderer::new(&plan, &renderer, c.spp);
+    let t = Instant::now();
+    seq.frame(start)?;
+    println!("  first frame (window of {} renders, cache filling): {:.1} s", seq.renders, t.elapsed().as_secs_f64());
+    // per timed frame: raster, shading, window, spatial filter, all (seconds)
+    let mut rows: Vec<[f64; 5]> = vec![];
+    for k in start + 1..=start + b.frames {
+        if std::env::var_os("EVBLUR_BENCH_FILL").is_some() {
+            let pose = plan.trajectory.pose_at(plan.clock.time_ns(k))?;
+            let settings = simulator::dataset::writer::render_settings(&plan, &pose, k, false);
+            eprintln!("{:?}", renderer.radiance_cache(&settings).map(|c| c.filled()));
+        }
+        let before = (seq.raster_time, seq.render_time, seq.gather_time, seq.denoise_time);
+        let t = Instant::now();
+        seq.frame(k)?;
+        let all = t.elapsed().as_secs_f64();
+        let raster = (seq.raster_time - before.0).as_secs_f64();
+        let render = (seq.render_time - before.1).as_secs_f64();
+        let gather = (seq.gather_time - before.2).as_secs_f64();
+        let filter = (seq.denoise_time - before.3).as_secs_f64();
+        rows.push([raster, render - raster, gather, filter - gather, all]);
+    }
+    let pose = plan.trajectory.pose_at(plan.clock.time_ns(start))?;
+    let settings = simulator::dataset::writer::render_settings(&plan, &pose, start, false);
+    if let Some(cache) = renderer.radiance_cache(&settings) {
+        let (sides, points) = cache.filled();
+        println!("  radiance cache: {sides} triangle sides filled, {points} lattice points");
+    }
+    let col = |i: usize| median(&rows.iter().map(|r| r[i]).collect::<Vec<_>>());
+    println!("  per frame (median of {}):", rows.len());
+    for (i, name) in ["raster", "shading", "temporal window", "spatial filter", "frame"].iter().enumerate() {
+        println!("    {:<16} {:7.3} s", name, col(i));
+    }
+    println!("  {n} frames at this rate: {:.1} min", col(4) * n as f64 / 60.0);
+    Ok(())
 }
 
 /// Samples per pixel of the Mitsuba ground truth the errors are measured against.

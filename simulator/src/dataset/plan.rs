@@ -31,8 +31,9 @@ use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 /// `Features::irradiance` (a per-sample ratio) and remodulate with reflectance from
 /// `feature_spp` camera rays. 4: the temporal window weighs its frames equally (was a tent).
 /// 5: camera rays' first triangles come from a rasterised visibility buffer (differs from
-/// traced rays only within float error of edges).
-pub const PIPELINE_VERSION: u32 = 5;
+/// traced rays only within float error of edges). 6: the first-hit-only camera rays are grouped
+/// by triangle (distance, normal and emission at each group's mean film point).
+pub const PIPELINE_VERSION: u32 = 6;
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]

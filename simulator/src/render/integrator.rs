@@ -23,8 +23,8 @@ use super::bsdf::Bsdf;
 use super::film::{Image, RenderSettings};
 use super::lights::{emitted_filtered, Lights};
 use super::radiance_cache::{lattice_bary, lattice_index, steps_for, CacheParams, Lattice, RadianceCache};
-use super::raster::{rasterise, Visibility};
-use super::sampler::{pixel_key, SampleStream};
+use super::raster::{rasterise, FilmOffsets, Visibility};
+use super::sampler::{pixel_key, SampleStream, SamplerKind};
 use super::sampling::{power_heuristic, Frame};
 use crate::scene::Scene;
 
@@ -45,7 +45,14 @@ pub struct Renderer<'a> {
     /// The radiance cache of the last render that asked for one (kept while its parameters
     /// stay the same, so the frames of a sequence share it).
     cache: Mutex<Option<Arc<RadianceCache>>>,
+    /// The film offsets of the last visibility buffer and what they depend on (see
+    /// [`Renderer::film_offsets`]).
+    film_offsets: Mutex<Option<(FilmKey, Arc<FilmOffsets>)>>,
 }
+
+/// What a film's camera-sample offsets depend on: width, height, samples per pixel, seed, frame
+/// and sampler.
+type FilmKey = (u32, u32, u32, u64, u64, SamplerKind);
 
 /// The per-vertex data of one triangle that shading reads, packed (64 bytes).
 #[derive(Clone, Copy, Debug)]
@@ -93,6 +100,7 @@ impl<'a> Renderer<'a> {
             lights: Lights::new(scene),
             shading,
             cache: Mutex::new(None),
+            film_offsets: Mutex::new(None),
         }
     }
 
@@ -176,13 +184,28 @@ impl<'a> Renderer<'a> {
     /// The first triangle each of the first `samples` camera rays of every pixel sees
     /// (rasterised, with the film points the renderer's samplers give those rays).
     pub fn visibility(&self, s: &RenderSettings, samples: u32) -> Visibility {
-        let offsets = |x: u32, y: u32, out: &mut [Vec2]| {
+        rasterise(&self.scene.mesh, &s.camera, self.film_offsets(s, samples))
+    }
+
+    /// The film offsets the samplers give the first `samples` camera rays of every pixel of
+    /// `s`'s film: computed once and reused while the film, seed, sampler and frame stay the
+    /// same (every frame of a sequence with a fixed noise pattern).
+    pub fn film_offsets(&self, s: &RenderSettings, samples: u32) -> Arc<FilmOffsets> {
+        let key = (s.width, s.height, samples, s.seed, s.frame, s.sampler);
+        let mut slot = self.film_offsets.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((k, offsets)) = &*slot {
+            if *k == key {
+                return offsets.clone();
+            }
+        }
+        let offsets = Arc::new(FilmOffsets::new(s.width, s.height, samples, |x, y, out| {
             let key = pixel_key(s.seed, y as u64 * s.width as u64 + x as u64, s.frame);
             for (i, o) in out.iter_mut().enumerate() {
                 *o = Vec2::from(SampleStream::new(s.sampler, key, i as u32).next_2d());
             }
-        };
-        rasterise(&self.scene.mesh, &s.camera, s.width, s.height, samples, offsets)
+        }));
+        *slot = Some((key, offsets.clone()));
+        offsets
     }
 
     /// Mean of `spp` box-filtered samples of pixel (x, y) (full paths: no radiance cache).
@@ -310,7 +333,7 @@ impl<'a> Renderer<'a> {
         let rays = s.spp.max(feature_spp);
         let film_rays = s.camera.film_rays(s.width, s.height);
         let mut counted = 0u32;
-        for i in 0..rays {
+        for i in 0..s.spp {
             let mut rng = SampleStream::new(s.sampler, key, i);
             // the film offset: from the visibility buffer when it holds this sample
             let c = match vis.filter(|v| i < v.samples) {
@@ -328,32 +351,35 @@ impl<'a> Renderer<'a> {
             let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
             let spread = self.camera_spread(s, film);
             let hit = self.camera_hit(vis.filter(|v| i < v.samples).map(|v| v.prim(x, y, i)), origin, dir);
-            let l = if i < s.spp {
-                Some(self.li_first(origin, dir, s, &mut rng, &mut first, spread, Some(hit), cache))
-            } else {
-                self.first_hit(hit, origin, dir, s, &mut first, spread);
-                None
-            };
+            let l = self.li_first(origin, dir, s, &mut rng, &mut first, spread, Some(hit), cache);
             acc.albedo += first.albedo;
             acc.normal += first.normal;
             acc.depth += first.depth;
             // a non-finite sample would poison the pixel: drop it (counts as black)
-            match l {
-                Some(l) if !l.is_finite() => continue,
-                Some(l) => {
-                    sum += l;
-                    let refl = (l - first.emission).max(Vec3::ZERO);
-                    reflected += refl;
-                    refl_albedo += first.albedo;
-                    let (r, a) = (luminance(refl) as f64, luminance(first.albedo) as f64);
-                    (r1, r2, a1, a2, ra) = (r1 + r, r2 + r * r, a1 + a, a2 + a * a, ra + r * a);
-                    shaded += 1;
-                }
-                None => {}
+            if !l.is_finite() {
+                continue;
             }
+            sum += l;
+            let refl = (l - first.emission).max(Vec3::ZERO);
+            reflected += refl;
+            refl_albedo += first.albedo;
+            let (r, a) = (luminance(refl) as f64, luminance(first.albedo) as f64);
+            (r1, r2, a1, a2, ra) = (r1 + r, r2 + r * r, a1 + a, a2 + a * a, ra + r * a);
+            shaded += 1;
             acc.emission += first.emission;
             counted += 1;
         }
+        // the camera rays that only see the first hit
+        let mut sums = FirstHitSums {
+            albedo: acc.albedo,
+            normal: acc.normal,
+            depth: acc.depth,
+            emission: acc.emission,
+            rays: counted,
+        };
+        self.first_hit_rays(s, x, y, s.spp..rays, vis, &film_rays, key, &mut sums);
+        (acc.albedo, acc.normal, acc.depth, acc.emission, counted) =
+            (sums.albedo, sums.normal, sums.depth, sums.emission, sums.rays);
         let n = s.spp.max(1) as f32;
         let rays = rays.max(1) as f32;
         let albedo = acc.albedo / rays;
@@ -444,33 +470,56 @@ impl<'a> Renderer<'a> {
             first.emission = self.scene.environment.radiance(dir);
             return;
         };
-        let sh = self.surface(&hit, origin, dir);
-        let fp = spread.and_then(|sp| self.uv_footprint(&hit, &sh, origin, sp));
-        first.normal = sh.frame.n;
+        let (normal, uv, fp) = match spread {
+            None => {
+                let (ns, uv) = self.shading_normal_uv(&hit, dir, || hit.edges[0].cross(hit.edges[1]).normalize());
+                (ns, uv, None)
+            }
+            Some(sp) => {
+                let sh = self.surface(&hit, origin, dir);
+                (sh.frame.n, sh.uv, self.uv_footprint(&hit, &sh, origin, sp))
+            }
+        };
+        first.normal = normal;
         first.depth = hit.t;
         first.emission = emitted_filtered(self.scene, hit.prim, hit.bary, -dir, fp);
         if s.max_depth > 1 {
-            first.albedo = self.bsdf(hit.prim, sh.uv, fp).albedo_hint();
+            first.albedo = self.bsdf(hit.prim, uv, fp).albedo_hint();
         }
     }
 
     /// Interpolated surface data at a hit, with the shading frame facing `-dir`.
     fn surface(&self, hit: &Hit, origin: Vec3, dir: Vec3) -> SurfaceHit {
+        let ng = hit.edges[0].cross(hit.edges[1]).normalize();
+        let front = ng.dot(dir) < 0.0;
+        let (ns, uv) = self.shading_normal_uv(hit, dir, || ng);
+        let p = origin + dir * hit.t;
+        SurfaceHit { p, ng, frame: Frame::from_normal(ns), front, uv }
+    }
+
+    /// The interpolated shading normal at a hit, facing `-dir` (two-sided shading), and the
+    /// texture coordinate; `ng()` is the unit geometric normal, the fallback for a degenerate
+    /// interpolated normal.
+    #[inline(always)]
+    fn shading_normal_uv(&self, hit: &Hit, dir: Vec3, ng: impl FnOnce() -> Vec3) -> (Vec3, Vec2) {
         let tri = &self.shading[hit.prim as usize];
         let (b1, b2) = (hit.bary.x, hit.bary.y);
         let b0 = 1.0 - b1 - b2;
-        let ng = hit.edges[0].cross(hit.edges[1]).normalize();
-        let front = ng.dot(dir) < 0.0;
         let [n0, n1, n2] = tri.normals;
-        let mut ns = (n0 * b0 + n1 * b1 + n2 * b2).try_normalize().unwrap_or(ng);
+        let mut ns = (n0 * b0 + n1 * b1 + n2 * b2).try_normalize().unwrap_or_else(ng);
         // make the shading normal face the viewer (two-sided shading)
         if ns.dot(dir) > 0.0 {
             ns = -ns;
         }
-        let [t0, t1, t2] = tri.uvs;
-        let uv = t0 * b0 + t1 * b1 + t2 * b2;
-        let p = origin + dir * hit.t;
-        SurfaceHit { p, ng, frame: Frame::from_normal(ns), front, uv }
+        (ns, self.shading_uv(hit.prim, hit.bary))
+    }
+
+    /// The texture coordinate of triangle `prim` at barycentrics `bary` (b1, b2).
+    #[inline(always)]
+    fn shading_uv(&self, prim: u32, bary: Vec2) -> Vec2 {
+        let [t0, t1, t2] = self.shading[prim as usize].uvs;
+        let (b1, b2) = (bary.x, bary.y);
+        t0 * (1.0 - b1 - b2) + t1 * b1 + t2 * b2
     }
 
     /// The BSDF of triangle `prim`'s material at texture coordinate `uv`, its textures filtered
@@ -766,6 +815,10 @@ fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
     let eps = 1e-4 * p.abs().max_element().max(1.0);
     p + n * eps
 }
+
+#[path = "first_hits.rs"]
+mod first_hits;
+use first_hits::FirstHitSums;
 
 #[cfg(test)]
 #[path = "integrator_tests.rs"]

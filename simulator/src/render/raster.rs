@@ -22,6 +22,8 @@
 //! tiles, each rasterising the triangles binned to it in index order: the buffer is the same
 //! whatever the thread count.
 
+use std::sync::Arc;
+
 use glam::{DVec3, Vec2};
 use rayon::prelude::*;
 
@@ -48,7 +50,47 @@ pub struct Visibility {
     /// Per pixel (row-major) and sample: the triangle index, or [`NONE`].
     prims: Vec<u32>,
     /// Per pixel and sample: the film offset within the pixel the sample was rasterised at.
+    offsets: Arc<FilmOffsets>,
+}
+
+/// The film offsets (in [0, 1)^2 within the pixel) of every camera sample of a film: what a
+/// renderer's sampler gives its camera rays. Computed once and shared by every frame that draws
+/// the same numbers (a fixed noise pattern).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilmOffsets {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    pub samples: u32,
+    /// Per pixel (row-major) and sample.
     offsets: Vec<Vec2>,
+}
+
+impl FilmOffsets {
+    /// The offsets of a `width` x `height` film with `samples` per pixel: `offsets(x, y, out)`
+    /// writes pixel (`x`, `y`)'s (`samples` long).
+    pub fn new(width: u32, height: u32, samples: u32, offsets: impl Fn(u32, u32, &mut [Vec2]) + Sync) -> FilmOffsets {
+        let s = samples.max(1) as usize;
+        let mut out = vec![Vec2::ZERO; width as usize * height as usize * s];
+        if width > 0 {
+            out.par_chunks_mut(width as usize * s).enumerate().for_each(|(y, row)| {
+                for (x, px) in row.chunks_exact_mut(s).enumerate() {
+                    offsets(x as u32, y as u32, px);
+                }
+            });
+        }
+        FilmOffsets { width, height, samples: samples.max(1), offsets: out }
+    }
+
+    /// The offsets of pixel (`x`, `y`)'s samples.
+    #[inline]
+    fn pixel(&self, x: u32, y: u32) -> &[Vec2] {
+        let s = self.samples as usize;
+        let k = (y as usize * self.width as usize + x as usize) * s;
+        &self.offsets[k..k + s]
+    }
 }
 
 impl Visibility {
@@ -67,7 +109,7 @@ impl Visibility {
     /// `offsets` function given to [`rasterise`] returned it.
     #[inline]
     pub fn offset(&self, x: u32, y: u32, i: u32) -> Vec2 {
-        self.offsets[((y as usize * self.width as usize + x as usize) * self.samples as usize) + i as usize]
+        self.offsets.offsets[((y as usize * self.width as usize + x as usize) * self.samples as usize) + i as usize]
     }
 
     /// Fraction of samples no triangle covers.
@@ -107,24 +149,13 @@ fn edge(a: [f64; 2], b: [f64; 2], px: f64, py: f64) -> f64 {
     (b[0] - a[0]) * (py - a[1]) - (b[1] - a[1]) * (px - a[0])
 }
 
-/// Rasterise `mesh` as seen by `camera` onto a `width` x `height` film with `samples` camera
-/// samples per pixel; `offsets(x, y, out)` writes the film offsets (in [0, 1)^2 within the pixel)
-/// of pixel (`x`, `y`)'s samples into `out` (`samples` long). Film points are `x + u`, `y + v` in
-/// f32, as [`crate::scene::FilmRays::direction`] takes them.
-pub fn rasterise<F>(
-    mesh: &TriangleMesh,
-    camera: &Camera,
-    width: u32,
-    height: u32,
-    samples: u32,
-    offsets: F,
-) -> Visibility
-where
-    F: Fn(u32, u32, &mut [Vec2]) + Sync,
-{
-    let samples = samples.max(1);
+/// Rasterise `mesh` as seen by `camera` onto the film of `offsets` (its size and camera samples
+/// per pixel, at its film offsets). Film points are `x + u`, `y + v` in f32, as
+/// [`crate::scene::FilmRays::direction`] takes them.
+pub fn rasterise(mesh: &TriangleMesh, camera: &Camera, offsets: Arc<FilmOffsets>) -> Visibility {
+    let (width, height, samples) = (offsets.width, offsets.height, offsets.samples);
     if width == 0 || height == 0 {
-        return Visibility { width, height, samples, prims: Vec::new(), offsets: Vec::new() };
+        return Visibility { width, height, samples, prims: Vec::new(), offsets };
     }
     let tris = setup(mesh, camera, width, height);
     let (tiles_x, tiles_y) = (width.div_ceil(RASTER_TILE), height.div_ceil(RASTER_TILE));
@@ -137,57 +168,35 @@ where
             }
         }
     }
-    let done: Vec<(Vec<u32>, Vec<Vec2>)> = bins
+    let done: Vec<Vec<u32>> = bins
         .par_iter()
         .enumerate()
         .map(|(b, bin)| {
             let (tx, ty) = (b as u32 % tiles_x, b as u32 / tiles_x);
-            raster_tile(&tris, bin, tx * RASTER_TILE, ty * RASTER_TILE, width, height, samples, &offsets)
+            raster_tile(&tris, bin, tx * RASTER_TILE, ty * RASTER_TILE, &offsets)
         })
         .collect();
     let s = samples as usize;
     let mut prims = vec![NONE; width as usize * height as usize * s];
-    let mut offs = vec![Vec2::ZERO; prims.len()];
-    for (b, (tile, tile_offs)) in done.iter().enumerate() {
+    for (b, tile) in done.iter().enumerate() {
         let (x0, y0) = ((b as u32 % tiles_x) * RASTER_TILE, (b as u32 / tiles_x) * RASTER_TILE);
         let tw = (width - x0).min(RASTER_TILE) as usize;
-        for (row, (chunk, o)) in tile.chunks_exact(tw * s).zip(tile_offs.chunks_exact(tw * s)).enumerate() {
+        for (row, chunk) in tile.chunks_exact(tw * s).enumerate() {
             let start = ((y0 as usize + row) * width as usize + x0 as usize) * s;
             prims[start..start + tw * s].copy_from_slice(chunk);
-            offs[start..start + tw * s].copy_from_slice(o);
         }
     }
-    Visibility { width, height, samples, prims, offsets: offs }
+    Visibility { width, height, samples, prims, offsets }
 }
 
 /// Rasterise the triangles `bin` (indices into `tris`) over the tile at (`x0`, `y0`); returns the
-/// tile's samples' triangles and film offsets row by row (tile width clipped to the film).
-#[allow(clippy::too_many_arguments)]
-fn raster_tile<F>(
-    tris: &[RasterTri],
-    bin: &[u32],
-    x0: u32,
-    y0: u32,
-    width: u32,
-    height: u32,
-    samples: u32,
-    offsets: &F,
-) -> (Vec<u32>, Vec<Vec2>)
-where
-    F: Fn(u32, u32, &mut [Vec2]) + Sync,
-{
-    let (x1, y1) = ((x0 + RASTER_TILE).min(width), (y0 + RASTER_TILE).min(height));
-    let (tw, th, s) = ((x1 - x0) as usize, (y1 - y0) as usize, samples as usize);
+/// tile's samples' triangles row by row (tile width clipped to the film).
+fn raster_tile(tris: &[RasterTri], bin: &[u32], x0: u32, y0: u32, offsets: &FilmOffsets) -> Vec<u32> {
+    let (x1, y1) = ((x0 + RASTER_TILE).min(offsets.width), (y0 + RASTER_TILE).min(offsets.height));
+    let (tw, th, s) = ((x1 - x0) as usize, (y1 - y0) as usize, offsets.samples as usize);
     let mut prim = vec![NONE; tw * th * s];
-    let mut off = vec![Vec2::ZERO; tw * th * s];
-    for y in y0..y1 {
-        for x in x0..x1 {
-            let base = ((y - y0) as usize * tw + (x - x0) as usize) * s;
-            offsets(x, y, &mut off[base..base + s]);
-        }
-    }
     if bin.is_empty() {
-        return (prim, off);
+        return prim;
     }
     let mut depth = vec![0.0f64; tw * th * s];
     // the samples' film points, as the renderer computes them
@@ -195,8 +204,8 @@ where
     for y in y0..y1 {
         for x in x0..x1 {
             let base = ((y - y0) as usize * tw + (x - x0) as usize) * s;
-            for i in base..base + s {
-                film[i] = [(x as f32 + off[i].x) as f64, (y as f32 + off[i].y) as f64];
+            for (f, o) in film[base..base + s].iter_mut().zip(offsets.pixel(x, y)) {
+                *f = [(x as f32 + o.x) as f64, (y as f32 + o.y) as f64];
             }
         }
     }
@@ -239,7 +248,7 @@ where
             }
         }
     }
-    (prim, off)
+    prim
 }
 
 /// Project, clip and set up every triangle of `mesh` that may cover part of the film.
@@ -349,13 +358,18 @@ mod tests {
     use glam::Vec3;
 
     /// Random offsets from a hash of the pixel, as a renderer's sampler would give them.
-    fn offsets(seed: u64) -> impl Fn(u32, u32, &mut [Vec2]) + Sync {
+    fn offsets_fn(seed: u64) -> impl Fn(u32, u32, &mut [Vec2]) + Sync {
         move |x, y, out: &mut [Vec2]| {
             let mut rng = Rng::new(seed ^ ((y as u64) << 32 | x as u64), 7);
             for o in out.iter_mut() {
                 *o = rng.next_2d();
             }
         }
+    }
+
+    /// The table of [`offsets_fn`] for a `w` x `h` film with `s` samples per pixel.
+    fn offsets(seed: u64, w: u32, h: u32, s: u32) -> Arc<FilmOffsets> {
+        Arc::new(FilmOffsets::new(w, h, s, offsets_fn(seed)))
     }
 
     /// Boxes and slanted quads around a camera, some crossing the near plane.
@@ -391,8 +405,8 @@ mod tests {
         let accel = Accel::build(&mesh, BvhPreset::Medium);
         let cam = Camera::look_at(Vec3::new(0.3, 0.2, 2.0), Vec3::new(-0.2, -0.1, -3.0), Vec3::Y, 0.9);
         let (w, h, s) = (90, 60, 8);
-        let off = offsets(3);
-        let vis = rasterise(&mesh, &cam, w, h, s, &off);
+        let off = offsets_fn(3);
+        let vis = rasterise(&mesh, &cam, offsets(3, w, h, s));
         let rays = cam.film_rays(w, h);
         let (mut agree, mut differ, mut covered) = (0, 0, 0);
         let mut o = vec![Vec2::ZERO; s as usize];
@@ -436,7 +450,7 @@ mod tests {
             m.material.push(0);
         }
         let cam = Camera::look_at(Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0), Vec3::Y, 0.8);
-        let vis = rasterise(&m, &cam, 64, 48, 16, offsets(11));
+        let vis = rasterise(&m, &cam, offsets(11, 64, 48, 16));
         // the fan fills the whole film
         assert_eq!(vis.uncovered_fraction(), 0.0);
     }
@@ -450,7 +464,7 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| rasterise(&mesh, &cam, 70, 50, 4, offsets(2)))
+                .install(|| rasterise(&mesh, &cam, offsets(2, 70, 50, 4)))
         };
         assert_eq!(run(1), run(3));
     }
@@ -466,6 +480,6 @@ mod tests {
         m.indices.push([0, 1, 2]);
         m.material.push(0);
         let cam = Camera::look_at(Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0), Vec3::Y, 0.8);
-        assert_eq!(rasterise(&m, &cam, 20, 10, 2, offsets(1)).uncovered_fraction(), 1.0);
+        assert_eq!(rasterise(&m, &cam, offsets(1, 20, 10, 2)).uncovered_fraction(), 1.0);
     }
 }

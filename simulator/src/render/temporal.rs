@@ -177,6 +177,7 @@ const MIN_ALBEDO: f32 = 1e-3;
 /// centre (fewer at the ends of a sequence). Returns the image and the features to give the
 /// spatial filter (the centre's, with the variance of the weighted mean). Panics if the frames'
 /// sizes differ (a programming error).
+#[inline(never)]
 pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (Image, Features) {
     let fk = window[center];
     let (w, h) = (fk.image.width, fk.image.height);
@@ -185,7 +186,6 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
         "frames of different sizes"
     );
     let n = (w * h) as usize;
-    let albedo = |f: &SequenceFrame, i: usize| f.features.albedo[i].max(Vec3::splat(MIN_ALBEDO));
     let neighbours: Vec<&SequenceFrame> = window
         .iter()
         .enumerate()
@@ -195,83 +195,103 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
     let mut pixels = vec![Vec3::ZERO; n];
     let mut variance = vec![0.0f32; n];
     let mut irradiance = vec![Vec3::ZERO; n];
-    let origin = fk.camera.origin();
     pixels
         .par_chunks_mut(w as usize)
         .zip(variance.par_chunks_mut(w as usize))
         .zip(irradiance.par_chunks_mut(w as usize))
         .enumerate()
-        .for_each(|(y, ((row, row_var), row_irr))| {
-            // the row's centre pixels: first-hit point, weighted sums of demodulated irradiance
-            // and of weight^2 * demodulated variance, and the weight sum
-            let row_start = y * w as usize;
-            // (point, normal, sees an emitter) of each centre pixel
-            let centre: Vec<(Vec3, Vec3, bool)> = (0..w as usize)
-                .map(|x| {
-                    let i = row_start + x;
-                    let dir = fk.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
-                    (origin + dir * fk.features.depth[i], fk.features.normal[i], fk.features.emission[i] != Vec3::ZERO)
-                })
-                .collect();
-            let mut sums: Vec<(Vec3, f32, f32)> = (0..w as usize)
-                .map(|x| {
-                    let i = row_start + x;
-                    let la = luminance(albedo(fk, i)).max(MIN_ALBEDO);
-                    (fk.features.irradiance[i], fk.features.variance[i] / (la * la), 1.0)
-                })
-                .collect();
-            // one neighbour at a time over the whole row (each pixel still adds its neighbours
-            // in window order, so the sums are those of a per-pixel loop): a few memory streams
-            // at a time instead of a few per neighbour
-            for &fj in &neighbours {
-                let origin_j = fj.camera.origin();
-                let projector = fj.camera.projector(w, h);
-                let taps_j = fj.taps();
-                for (&(point, normal, emissive), (sum, var, wsum)) in centre.iter().zip(sums.iter_mut()) {
-                    let Some(q) = projector.project(point) else { continue };
-                    let (qx, qy) = (q.x - 0.5, q.y - 0.5);
-                    // entirely outside the neighbour's image (NaN included): nothing to read
-                    if !(qx > -1.0 && qy > -1.0 && qx < w as f32 && qy < h as f32) {
-                        continue;
-                    }
-                    let dist = (point - origin_j).length();
-                    let (x0, y0) = (qx.floor(), qy.floor());
-                    let (fx, fy) = (qx - x0, qy - y0);
-                    let taps = [
-                        (0, 0, (1.0 - fx) * (1.0 - fy)),
-                        (1, 0, fx * (1.0 - fy)),
-                        (0, 1, (1.0 - fx) * fy),
-                        (1, 1, fx * fy),
-                    ];
-                    for (dx, dy, bilinear) in taps {
-                        let (tx, ty) = (x0 as i64 + dx, y0 as i64 + dy);
-                        if tx < 0 || ty < 0 || tx >= w as i64 || ty >= h as i64 || bilinear <= 0.0 {
-                            continue;
-                        }
-                        let tap = &taps_j[(ty as u32 * w + tx as u32) as usize];
-                        if (tap.signed_depth.abs() - dist).abs() > p.depth_tolerance * dist
-                            || tap.normal.dot(normal) < p.min_normal_dot
-                            || (tap.signed_depth < 0.0) != emissive
-                        {
-                            continue;
-                        }
-                        let wt = bilinear;
-                        *sum += tap.irradiance * wt;
-                        *var += tap.variance * wt * wt;
-                        *wsum += wt;
-                    }
-                }
-            }
-            for (x, (sum, var, wsum)) in sums.into_iter().enumerate() {
-                let i = row_start + x;
-                let la = luminance(albedo(fk, i)).max(MIN_ALBEDO);
-                row_irr[x] = sum / wsum;
-                row[x] = row_irr[x] * fk.features.albedo[i] + fk.features.emission[i];
-                row_var[x] = var / (wsum * wsum) * la * la;
-            }
-        });
+        .for_each(|(y, ((row, row_var), row_irr))| gather_row(fk, &neighbours, p, y, row, row_var, row_irr));
     let features = Features { variance, irradiance, ..fk.features.clone() };
     (Image { width: w, height: h, pixels }, features)
+}
+
+/// Row `y` of [`gather`]: the centre frame `fk`'s pixels with `neighbours`' taps averaged in.
+#[inline(never)]
+fn gather_row(
+    fk: &SequenceFrame,
+    neighbours: &[&SequenceFrame],
+    p: &TemporalParams,
+    y: usize,
+    row: &mut [Vec3],
+    row_var: &mut [f32],
+    row_irr: &mut [Vec3],
+) {
+    let (w, h) = (fk.image.width, fk.image.height);
+    let wu = w as usize;
+    let albedo = |i: usize| fk.features.albedo[i].max(Vec3::splat(MIN_ALBEDO));
+    let origin = fk.camera.origin();
+    // the row's centre pixels: first-hit point (one plane per coordinate), normal and whether
+    // the camera ray sees an emitter; weighted sums of demodulated irradiance and of
+    // weight^2 * demodulated variance, and the weight sum
+    let row_start = y * wu;
+    let mut point = [vec![0.0f32; wu], vec![0.0f32; wu], vec![0.0f32; wu]];
+    let mut centre: Vec<(Vec3, bool)> = Vec::with_capacity(wu);
+    for x in 0..wu {
+        let i = row_start + x;
+        let dir = fk.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
+        let pt = origin + dir * fk.features.depth[i];
+        (point[0][x], point[1][x], point[2][x]) = (pt.x, pt.y, pt.z);
+        centre.push((fk.features.normal[i], fk.features.emission[i] != Vec3::ZERO));
+    }
+    let mut sums: Vec<(Vec3, f32, f32)> = (0..wu)
+        .map(|x| {
+            let i = row_start + x;
+            let la = luminance(albedo(i)).max(MIN_ALBEDO);
+            (fk.features.irradiance[i], fk.features.variance[i] / (la * la), 1.0)
+        })
+        .collect();
+    // per neighbour: where each centre point lands in its image (pixel-centre coordinates) and
+    // how far it is from its camera
+    let (mut qx, mut qy, mut dist) = (vec![0.0f32; wu], vec![0.0f32; wu], vec![0.0f32; wu]);
+    // one neighbour at a time over the whole row (each pixel still adds its neighbours in window
+    // order, so the sums are those of a per-pixel loop): a few memory streams at a time
+    for &fj in neighbours {
+        let origin_j = fj.camera.origin();
+        let projector = fj.camera.projector(w, h);
+        let taps_j = fj.taps();
+        // the projections, without branches (they vectorise); NaN marks a point behind the camera
+        for x in 0..wu {
+            let pt = Vec3::new(point[0][x], point[1][x], point[2][x]);
+            let q = projector.project_or_nan(pt);
+            (qx[x], qy[x]) = (q.x - 0.5, q.y - 0.5);
+            dist[x] = (pt - origin_j).length();
+        }
+        for (x, (&(normal, emissive), (sum, var, wsum))) in centre.iter().zip(sums.iter_mut()).enumerate() {
+            let (qx, qy, dist) = (qx[x], qy[x], dist[x]);
+            // entirely outside the neighbour's image (NaN included): nothing to read
+            if !(qx > -1.0 && qy > -1.0 && qx < w as f32 && qy < h as f32) {
+                continue;
+            }
+            let (x0, y0) = (qx.floor(), qy.floor());
+            let (fx, fy) = (qx - x0, qy - y0);
+            let taps =
+                [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)];
+            for (dx, dy, bilinear) in taps {
+                let (tx, ty) = (x0 as i64 + dx, y0 as i64 + dy);
+                if tx < 0 || ty < 0 || tx >= w as i64 || ty >= h as i64 || bilinear <= 0.0 {
+                    continue;
+                }
+                let tap = &taps_j[(ty as u32 * w + tx as u32) as usize];
+                if (tap.signed_depth.abs() - dist).abs() > p.depth_tolerance * dist
+                    || tap.normal.dot(normal) < p.min_normal_dot
+                    || (tap.signed_depth < 0.0) != emissive
+                {
+                    continue;
+                }
+                let wt = bilinear;
+                *sum += tap.irradiance * wt;
+                *var += tap.variance * wt * wt;
+                *wsum += wt;
+            }
+        }
+    }
+    for (x, (sum, var, wsum)) in sums.into_iter().enumerate() {
+        let i = row_start + x;
+        let la = luminance(albedo(i)).max(MIN_ALBEDO);
+        row_irr[x] = sum / wsum;
+        row[x] = row_irr[x] * fk.features.albedo[i] + fk.features.emission[i];
+        row_var[x] = var / (wsum * wsum) * la * la;
+    }
 }
 
 #[cfg(test)]

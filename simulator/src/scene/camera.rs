@@ -90,9 +90,25 @@ impl FilmRays {
     /// World-space unit direction through film point `p` (as [`Camera::direction`]).
     #[inline]
     pub fn direction(&self, p: Vec2) -> Vec3 {
+        self.unnormalised(p).normalize()
+    }
+
+    /// [`FilmRays::direction`] before normalisation: the world-space direction to the point of
+    /// the image plane at distance 1, affine in `p`.
+    #[inline]
+    pub fn unnormalised(&self, p: Vec2) -> Vec3 {
         let x = (2.0 * p.x / self.width - 1.0) * self.tan_half * self.aspect;
         let y = (1.0 - 2.0 * p.y / self.height) * self.tan_half;
-        self.to_world.transform_vector3(Vec3::new(x, y, -1.0)).normalize()
+        self.to_world.transform_vector3(Vec3::new(x, y, -1.0))
+    }
+
+    /// How [`FilmRays::unnormalised`] changes per pixel along x and along y.
+    #[inline]
+    pub fn steps(&self) -> [Vec3; 2] {
+        [
+            self.to_world.transform_vector3(Vec3::new(2.0 / self.width * self.tan_half * self.aspect, 0.0, 0.0)),
+            self.to_world.transform_vector3(Vec3::new(0.0, -2.0 / self.height * self.tan_half, 0.0)),
+        ]
     }
 }
 
@@ -116,8 +132,28 @@ impl Projector {
         if !(local.z < 0.0) {
             return None;
         }
+        Some(self.film(local))
+    }
+
+    /// As [`Projector::project`], with NaN coordinates for a point not in front of the camera
+    /// (no branch, so that loops of it vectorise).
+    #[inline(always)]
+    pub fn project_or_nan(&self, x: Vec3) -> Vec2 {
+        let d = x - self.origin;
+        let local = Vec3::new(d.dot(self.axes[0]), d.dot(self.axes[1]), d.dot(self.axes[2]));
+        let q = self.film(local);
+        if local.z < 0.0 {
+            q
+        } else {
+            Vec2::NAN
+        }
+    }
+
+    /// Film coordinates of the camera-space point `local`.
+    #[inline(always)]
+    fn film(&self, local: Vec3) -> Vec2 {
         let (sx, sy) = (local.x / -local.z / (self.tan_half * self.aspect), local.y / -local.z / self.tan_half);
-        Some(Vec2::new((sx + 1.0) * 0.5 * self.width, (1.0 - sy) * 0.5 * self.height))
+        Vec2::new((sx + 1.0) * 0.5 * self.width, (1.0 - sy) * 0.5 * self.height)
     }
 }
 

@@ -149,7 +149,7 @@ fn event_counts(
         let t_ns = plan.clock.time_ns(k);
         let mut images = vec![seq.frame(k)?];
         if c.denoise {
-            images.push(seq.raw(k).expect("denoising keeps the window's raw renders").clone());
+            images.push(seq.raw(k).expect("denoising keeps the window's raw renders"));
         }
         for ((mut img, sim), counted) in images.into_iter().zip(&mut sims).zip(&mut out) {
             round_to_f16(&mut img);

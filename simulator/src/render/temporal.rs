@@ -21,13 +21,21 @@
 //! reprojected pixels carry independent samples, so averaging them removes such jumps where a
 //! single frame's spatial filter cannot tell them from real lighting edges.
 //!
+//! Blocks: reading every neighbour costs a reprojection per neighbour and pixel, which grows
+//! with the radius. So [`BLOCK_FRAMES`] consecutive frames (aligned: frames `bB..bB+B-1`) are
+//! merged once into the pixel grid of their first frame ([`Block::merge`]: the same
+//! reprojection, keeping the weighted sums and the weight per pixel), and a window reads a
+//! whole block where the block lies entirely on one side of its centre: a window of radius 64
+//! reads about 30 sources instead of 128. A block's frames pass through two bilinear reads
+//! instead of one (a slight extra blur of the lighting) and what its first frame does not see
+//! is lost to it. [`gather_sources`] takes any list of frames and blocks.
+//!
 //! Reprojection assumes a static scene (only the camera moves) and view-independent shading at
 //! the first hit: glossy highlights are averaged over the window (±32 ms at the dataset default
 //! and 1000 FPS), a slight temporal blur. Like the spatial filter, the result is a pure function
 //! of its inputs: the same bytes whatever the thread count.
 
-use std::sync::OnceLock;
-
+use exr::prelude::f16;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -35,35 +43,137 @@ use super::film::Image;
 use super::integrator::{luminance, Features};
 use crate::scene::Camera;
 
-/// One rendered frame of a sequence: its camera, image and first-hit features.
-///
-/// It also keeps, built on first use and dropped when the features are changed, the packed
-/// per-pixel record [`gather`] reads from neighbour frames (one 32-byte record per pixel instead
-/// of six separate buffers).
+/// One rendered frame of a sequence, kept compact: its camera, the per-pixel record a window
+/// reads of it ([`Tap`]: lighting, variance, normal, distance) and, while it may still be a
+/// window's centre, its reflectance, directly seen light and raw render in half floats (the
+/// filtered output is rounded to halves anyway). About 44 bytes a pixel (10.6 MB at 600x400),
+/// 32 once reduced to a neighbour ([`SequenceFrame::keep_neighbour_data`]).
 #[derive(Clone, Debug)]
 pub struct SequenceFrame {
     camera: Camera,
-    image: Image,
-    features: Features,
-    taps: OnceLock<Vec<Tap>>,
+    width: u32,
+    height: u32,
+    taps: Vec<Tap>,
+    albedo: Vec<Half3>,
+    emission: Vec<Half3>,
+    raw: Vec<Half3>,
 }
 
-/// What the window reads of a neighbour's pixel: demodulated irradiance, its variance over the
-/// squared reflectance luminance, the normal and the hit distance, negated when the camera ray
-/// sees an emitter (distances are positive).
+/// Three half floats.
+type Half3 = [f16; 3];
+
+#[inline]
+fn to_half3(v: Vec3) -> Half3 {
+    [f16::from_f32(v.x), f16::from_f32(v.y), f16::from_f32(v.z)]
+}
+
+#[inline]
+fn from_half3(h: Half3) -> Vec3 {
+    Vec3::new(h[0].to_f32(), h[1].to_f32(), h[2].to_f32())
+}
+
+/// What the window reads of a source's pixel: weighted sums of demodulated irradiance (half
+/// floats) and of its variance over the squared reflectance luminance (weights squared), the
+/// weight, and the normal and hit distance of the surface they belong to, the distance negated
+/// when the camera ray sees an emitter (distances are positive). A frame's own pixel has weight
+/// 1. 32 bytes.
 #[derive(Clone, Copy, Debug)]
 struct Tap {
-    irradiance: Vec3,
+    irradiance: Half3,
     variance: f32,
     normal: Vec3,
     signed_depth: f32,
+    weight: f32,
+}
+
+impl Tap {
+    #[inline]
+    fn irradiance(&self) -> Vec3 {
+        from_half3(self.irradiance)
+    }
+}
+
+/// One input of [`gather_sources`]: a frame ([`SequenceFrame::source`]) or a [`Block`]
+/// ([`Block::source`]).
+#[derive(Clone, Copy)]
+pub struct Source<'a> {
+    camera: &'a Camera,
+    taps: &'a [Tap],
+}
+
+/// Frames per [`Block`].
+pub const BLOCK_FRAMES: usize = 8;
+
+/// Consecutive frames merged into the pixel grid of the first (see the [module docs](self)).
+#[derive(Clone, Debug)]
+pub struct Block {
+    camera: Camera,
+    taps: Vec<Tap>,
+}
+
+impl Block {
+    /// Merge `frames` (consecutive, of one size; they may be reduced to their neighbour data)
+    /// into the grid of the first: per pixel, its own tap plus the others' taps at the same
+    /// surface point, as [`gather`] reads them.
+    pub fn merge(frames: &[&SequenceFrame], p: &TemporalParams) -> Block {
+        let first = frames[0];
+        let (w, h) = (first.width, first.height);
+        let others: Vec<Source> = frames[1..].iter().map(|f| f.source()).collect();
+        let centre = first.source();
+        let taps = (0..h as usize)
+            .into_par_iter()
+            .flat_map_iter(|y| {
+                let sums = accumulate_row(&centre, &others, p, w, h, y);
+                let row = &centre.taps[y * w as usize..(y + 1) * w as usize];
+                sums.into_iter().zip(row).map(|((irradiance, variance, weight), t)| Tap {
+                    irradiance: to_half3(irradiance),
+                    variance,
+                    weight,
+                    normal: t.normal,
+                    signed_depth: t.signed_depth,
+                })
+            })
+            .collect();
+        Block { camera: first.camera.clone(), taps }
+    }
+
+    /// The block as an input of [`gather_sources`].
+    pub fn source(&self) -> Source<'_> {
+        Source { camera: &self.camera, taps: &self.taps }
+    }
 }
 
 impl SequenceFrame {
     /// A frame rendered with `camera`: the path tracer's (unfiltered) image and the first-hit
-    /// buffers of the same render.
-    pub fn new(camera: Camera, image: Image, features: Features) -> SequenceFrame {
-        SequenceFrame { camera, image, features, taps: OnceLock::new() }
+    /// buffers of the same render. Panics if their sizes differ (a programming error).
+    pub fn new(camera: Camera, image: &Image, features: &Features) -> SequenceFrame {
+        let (w, h) = (features.width, features.height);
+        assert!(image.width == w && image.height == h, "image and features of different renders");
+        let f = features;
+        let taps = (0..f.depth.len())
+            .into_par_iter()
+            .map(|t| {
+                let la = luminance(f.albedo[t].max(Vec3::splat(MIN_ALBEDO))).max(MIN_ALBEDO);
+                let emissive = f.emission[t] != Vec3::ZERO;
+                Tap {
+                    irradiance: to_half3(f.irradiance[t]),
+                    variance: f.variance[t] / (la * la),
+                    normal: f.normal[t],
+                    signed_depth: if emissive { -f.depth[t] } else { f.depth[t] },
+                    weight: 1.0,
+                }
+            })
+            .collect();
+        let halves = |v: &[Vec3]| v.par_iter().map(|&c| to_half3(c)).collect();
+        SequenceFrame {
+            camera,
+            width: w,
+            height: h,
+            taps,
+            albedo: halves(&f.albedo),
+            emission: halves(&f.emission),
+            raw: halves(&image.pixels),
+        }
     }
 
     /// The camera the frame was rendered with.
@@ -71,64 +181,50 @@ impl SequenceFrame {
         &self.camera
     }
 
-    /// The path tracer's (unfiltered) image.
-    pub fn image(&self) -> &Image {
-        &self.image
+    /// The path tracer's (unfiltered) image, as kept (halves; no pixels once reduced to a
+    /// neighbour).
+    pub fn image(&self) -> Image {
+        Image { width: self.width, height: self.height, pixels: self.raw.iter().map(|&h| from_half3(h)).collect() }
     }
 
-    /// The first-hit buffers of the render.
-    pub fn features(&self) -> &Features {
-        &self.features
+    /// The first-hit buffers as kept: reflectance and emission in halves, the demodulated
+    /// irradiance in halves, normal, distance and variance as rendered. Panics once the frame is
+    /// reduced to a neighbour (a programming error).
+    pub fn features(&self) -> Features {
+        assert!(self.albedo.len() == self.taps.len(), "a frame reduced to a neighbour has no features");
+        let albedo: Vec<Vec3> = self.albedo.iter().map(|&h| from_half3(h)).collect();
+        let variance = self
+            .taps
+            .iter()
+            .zip(&albedo)
+            .map(|(t, a)| {
+                let la = luminance(a.max(Vec3::splat(MIN_ALBEDO))).max(MIN_ALBEDO);
+                t.variance * (la * la)
+            })
+            .collect();
+        Features {
+            width: self.width,
+            height: self.height,
+            normal: self.taps.iter().map(|t| t.normal).collect(),
+            depth: self.taps.iter().map(|t| t.signed_depth.abs()).collect(),
+            irradiance: self.taps.iter().map(|t| t.irradiance()).collect(),
+            emission: self.emission.iter().map(|&h| from_half3(h)).collect(),
+            variance,
+            albedo,
+        }
     }
 
-    /// The image, to change.
-    pub fn image_mut(&mut self) -> &mut Image {
-        &mut self.image
-    }
-
-    /// The first-hit buffers, to change (the packed records are rebuilt on next use).
-    pub fn features_mut(&mut self) -> &mut Features {
-        self.taps = OnceLock::new();
-        &mut self.features
-    }
-
-    /// Keep only what [`gather`] reads of a *neighbour* (the camera and the packed records, built
-    /// now if need be) and free the image and feature buffers (about 17 of 24 MB at 600x400):
-    /// for a frame that will not be a window's centre again. The image and features keep their
-    /// size but hold no pixels; passing the frame as a centre afterwards panics.
+    /// Keep only what [`gather`] reads of a *neighbour* (the camera and the packed records) and
+    /// free the rest: for a frame that will not be a window's centre again.
     pub fn keep_neighbour_data(&mut self) {
-        self.taps();
-        let (w, h) = (self.image.width, self.image.height);
-        self.image = Image { width: w, height: h, pixels: Vec::new() };
-        let f = &self.features;
-        self.features = Features {
-            width: f.width,
-            height: f.height,
-            albedo: Vec::new(),
-            normal: Vec::new(),
-            depth: Vec::new(),
-            variance: Vec::new(),
-            emission: Vec::new(),
-            irradiance: Vec::new(),
-        };
+        for v in [&mut self.albedo, &mut self.emission, &mut self.raw] {
+            *v = Vec::new();
+        }
     }
 
-    fn taps(&self) -> &[Tap] {
-        self.taps.get_or_init(|| {
-            let f = &self.features;
-            (0..f.depth.len())
-                .map(|t| {
-                    let la = luminance(f.albedo[t].max(Vec3::splat(MIN_ALBEDO))).max(MIN_ALBEDO);
-                    let emissive = f.emission[t] != Vec3::ZERO;
-                    Tap {
-                        irradiance: f.irradiance[t],
-                        variance: f.variance[t] / (la * la),
-                        normal: f.normal[t],
-                        signed_depth: if emissive { -f.depth[t] } else { f.depth[t] },
-                    }
-                })
-                .collect()
-        })
+    /// The frame as an input of [`gather_sources`].
+    pub fn source(&self) -> Source<'_> {
+        Source { camera: &self.camera, taps: &self.taps }
     }
 }
 
@@ -151,7 +247,7 @@ impl Default for TemporalParams {
 }
 
 /// Largest supported radius (a window of 65 frames held in memory).
-pub const MAX_RADIUS: usize = 32;
+pub const MAX_RADIUS: usize = 64;
 
 impl TemporalParams {
     /// Check the settings; the error names the field and its allowed range.
@@ -177,121 +273,119 @@ const MIN_ALBEDO: f32 = 1e-3;
 /// centre (fewer at the ends of a sequence). Returns the image and the features to give the
 /// spatial filter (the centre's, with the variance of the weighted mean). Panics if the frames'
 /// sizes differ (a programming error).
-#[inline(never)]
 pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (Image, Features) {
-    let fk = window[center];
-    let (w, h) = (fk.image.width, fk.image.height);
-    assert!(
-        window.iter().all(|f| (f.image.width, f.image.height, f.features.width, f.features.height) == (w, h, w, h)),
-        "frames of different sizes"
-    );
-    let n = (w * h) as usize;
-    let neighbours: Vec<&SequenceFrame> = window
+    let sources: Vec<Source> = window
         .iter()
         .enumerate()
         .filter(|&(j, _)| j != center && j.abs_diff(center) <= p.radius)
-        .map(|(_, &f)| f)
+        .map(|(_, f)| f.source())
         .collect();
+    gather_sources(window[center], &sources, p)
+}
+
+/// [`gather`] from any frames and blocks: `centre`'s lighting with that of `sources` averaged
+/// in, each frame in them weighing as much as the centre. Panics if the sizes differ (a
+/// programming error).
+pub fn gather_sources(centre: &SequenceFrame, sources: &[Source], p: &TemporalParams) -> (Image, Features) {
+    let (w, h) = (centre.width, centre.height);
+    let n = (w * h) as usize;
+    assert!(sources.iter().all(|s| s.taps.len() == n), "frames of different sizes");
+    let own = centre.source();
     let mut pixels = vec![Vec3::ZERO; n];
     let mut variance = vec![0.0f32; n];
     let mut irradiance = vec![Vec3::ZERO; n];
+    let fk = centre.features();
     pixels
         .par_chunks_mut(w as usize)
         .zip(variance.par_chunks_mut(w as usize))
         .zip(irradiance.par_chunks_mut(w as usize))
         .enumerate()
-        .for_each(|(y, ((row, row_var), row_irr))| gather_row(fk, &neighbours, p, y, row, row_var, row_irr));
-    let features = Features { variance, irradiance, ..fk.features.clone() };
+        .for_each(|(y, ((row, row_var), row_irr))| {
+            let sums = accumulate_row(&own, sources, p, w, h, y);
+            let row_start = y * w as usize;
+            for (x, (sum, var, wsum)) in sums.into_iter().enumerate() {
+                let i = row_start + x;
+                let la = luminance(fk.albedo[i].max(Vec3::splat(MIN_ALBEDO))).max(MIN_ALBEDO);
+                row_irr[x] = sum / wsum;
+                row[x] = row_irr[x] * fk.albedo[i] + fk.emission[i];
+                row_var[x] = var / (wsum * wsum) * la * la;
+            }
+        });
+    let features = Features { variance, irradiance, ..fk };
     (Image { width: w, height: h, pixels }, features)
 }
 
-/// Row `y` of [`gather`]: the centre frame `fk`'s pixels with `neighbours`' taps averaged in.
-#[inline(never)]
-fn gather_row(
-    fk: &SequenceFrame,
-    neighbours: &[&SequenceFrame],
+/// Row `y` of the window: per pixel of `centre` (a `w` x `h` frame or block), its own weighted
+/// sums plus those `sources` hold at the same surface point: (irradiance, variance with the
+/// weights squared, weight).
+fn accumulate_row(
+    centre: &Source,
+    sources: &[Source],
     p: &TemporalParams,
+    w: u32,
+    h: u32,
     y: usize,
-    row: &mut [Vec3],
-    row_var: &mut [f32],
-    row_irr: &mut [Vec3],
-) {
-    let (w, h) = (fk.image.width, fk.image.height);
+) -> Vec<(Vec3, f32, f32)> {
     let wu = w as usize;
-    let albedo = |i: usize| fk.features.albedo[i].max(Vec3::splat(MIN_ALBEDO));
-    let origin = fk.camera.origin();
-    // the row's centre pixels: first-hit point (one plane per coordinate), normal and whether
-    // the camera ray sees an emitter; weighted sums of demodulated irradiance and of
-    // weight^2 * demodulated variance, and the weight sum
-    let row_start = y * wu;
+    let origin = centre.camera.origin();
+    let row = &centre.taps[y * wu..(y + 1) * wu];
+    // the row's first-hit points, one plane per coordinate (so the projections vectorise)
     let mut point = [vec![0.0f32; wu], vec![0.0f32; wu], vec![0.0f32; wu]];
-    let mut centre: Vec<(Vec3, bool)> = Vec::with_capacity(wu);
-    for x in 0..wu {
-        let i = row_start + x;
-        let dir = fk.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
-        let pt = origin + dir * fk.features.depth[i];
+    for (x, tap) in row.iter().enumerate() {
+        let dir = centre.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
+        let pt = origin + dir * tap.signed_depth.abs();
         (point[0][x], point[1][x], point[2][x]) = (pt.x, pt.y, pt.z);
-        centre.push((fk.features.normal[i], fk.features.emission[i] != Vec3::ZERO));
     }
-    let mut sums: Vec<(Vec3, f32, f32)> = (0..wu)
-        .map(|x| {
-            let i = row_start + x;
-            let la = luminance(albedo(i)).max(MIN_ALBEDO);
-            (fk.features.irradiance[i], fk.features.variance[i] / (la * la), 1.0)
-        })
-        .collect();
-    // per neighbour: where each centre point lands in its image (pixel-centre coordinates) and
-    // how far it is from its camera
+    let mut sums: Vec<(Vec3, f32, f32)> = row.iter().map(|t| (t.irradiance(), t.variance, t.weight)).collect();
+    // per source: where each point lands in its image (pixel-centre coordinates) and how far
+    // it is from its camera
     let (mut qx, mut qy, mut dist) = (vec![0.0f32; wu], vec![0.0f32; wu], vec![0.0f32; wu]);
-    // one neighbour at a time over the whole row (each pixel still adds its neighbours in window
-    // order, so the sums are those of a per-pixel loop): a few memory streams at a time
-    for &fj in neighbours {
-        let origin_j = fj.camera.origin();
-        let projector = fj.camera.projector(w, h);
-        let taps_j = fj.taps();
-        // the projections, without branches (they vectorise); NaN marks a point behind the camera
-        for x in 0..wu {
+    // one source at a time over the whole row (each pixel still adds its sources in order, so
+    // the sums are those of a per-pixel loop): a few memory streams at a time
+    for src in sources {
+        let origin_j = src.camera.origin();
+        let projector = src.camera.projector(w, h);
+        // the projections, without branches; NaN marks a point behind the camera
+        for (x, ((qx, qy), dist)) in qx.iter_mut().zip(qy.iter_mut()).zip(dist.iter_mut()).enumerate() {
             let pt = Vec3::new(point[0][x], point[1][x], point[2][x]);
             let q = projector.project_or_nan(pt);
-            (qx[x], qy[x]) = (q.x - 0.5, q.y - 0.5);
-            dist[x] = (pt - origin_j).length();
+            (*qx, *qy) = (q.x - 0.5, q.y - 0.5);
+            *dist = (pt - origin_j).length();
         }
-        for (x, (&(normal, emissive), (sum, var, wsum))) in centre.iter().zip(sums.iter_mut()).enumerate() {
+        for (x, (sum, var, wsum)) in sums.iter_mut().enumerate() {
             let (qx, qy, dist) = (qx[x], qy[x], dist[x]);
-            // entirely outside the neighbour's image (NaN included): nothing to read
+            // entirely outside the source's image (NaN included): nothing to read
             if !(qx > -1.0 && qy > -1.0 && qx < w as f32 && qy < h as f32) {
                 continue;
             }
+            let (normal, emissive) = (row[x].normal, row[x].signed_depth < 0.0);
             let (x0, y0) = (qx.floor(), qy.floor());
             let (fx, fy) = (qx - x0, qy - y0);
-            let taps =
-                [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)];
+            let taps = [
+                (0, 0, (1.0 - fx) * (1.0 - fy)),
+                (1, 0, fx * (1.0 - fy)),
+                (0, 1, (1.0 - fx) * fy),
+                (1, 1, fx * fy),
+            ];
             for (dx, dy, bilinear) in taps {
                 let (tx, ty) = (x0 as i64 + dx, y0 as i64 + dy);
                 if tx < 0 || ty < 0 || tx >= w as i64 || ty >= h as i64 || bilinear <= 0.0 {
                     continue;
                 }
-                let tap = &taps_j[(ty as u32 * w + tx as u32) as usize];
+                let tap = &src.taps[(ty as u32 * w + tx as u32) as usize];
                 if (tap.signed_depth.abs() - dist).abs() > p.depth_tolerance * dist
                     || tap.normal.dot(normal) < p.min_normal_dot
                     || (tap.signed_depth < 0.0) != emissive
                 {
                     continue;
                 }
-                let wt = bilinear;
-                *sum += tap.irradiance * wt;
-                *var += tap.variance * wt * wt;
-                *wsum += wt;
+                *sum += tap.irradiance() * bilinear;
+                *var += tap.variance * bilinear * bilinear;
+                *wsum += tap.weight * bilinear;
             }
         }
     }
-    for (x, (sum, var, wsum)) in sums.into_iter().enumerate() {
-        let i = row_start + x;
-        let la = luminance(albedo(i)).max(MIN_ALBEDO);
-        row_irr[x] = sum / wsum;
-        row[x] = row_irr[x] * fk.features.albedo[i] + fk.features.emission[i];
-        row_var[x] = var / (wsum * wsum) * la * la;
-    }
+    sums
 }
 
 #[cfg(test)]

@@ -21,6 +21,12 @@ fn irradiance(p: Vec3) -> Vec3 {
 /// bleed into its surroundings) (0.1 per frame, about a pixel) in front of the
 /// plane, with relative noise `noise` (independent per pixel and frame).
 fn frame(k: i32, noise: f32, rng: &mut Rng) -> SequenceFrame {
+    let (camera, image, features) = frame_parts(k, noise, rng);
+    SequenceFrame::new(camera, &image, &features)
+}
+
+/// What [`frame`] makes its frame from.
+fn frame_parts(k: i32, noise: f32, rng: &mut Rng) -> (Camera, Image, Features) {
     let origin = Vec3::new(0.1 * k as f32, 0.2, 5.0);
     let camera = Camera::look_at(origin, origin - Vec3::Z, Vec3::Y, 0.8);
     let mut image = Image::new(W, H);
@@ -46,7 +52,7 @@ fn frame(k: i32, noise: f32, rng: &mut Rng) -> SequenceFrame {
         }
     }
     features.demodulate(&image);
-    SequenceFrame::new(camera, image, features)
+    (camera, image, features)
 }
 
 fn truth(center: &SequenceFrame) -> Vec<Vec3> {
@@ -74,8 +80,20 @@ fn refs(frames: &[SequenceFrame]) -> Vec<&SequenceFrame> {
 }
 
 fn window(noise: f32, seed: u64) -> Vec<SequenceFrame> {
+    window_with(noise, seed, |_, _, _| {})
+}
+
+/// [`window`] with `change(j, image, features)` applied to frame `j`'s render first.
+fn window_with(noise: f32, seed: u64, change: impl Fn(usize, &mut Image, &mut Features)) -> Vec<SequenceFrame> {
     let mut rng = Rng::new(seed, 1);
-    (-4..=4).map(|k| frame(k, noise, &mut rng)).collect()
+    (-4..=4)
+        .enumerate()
+        .map(|(j, k)| {
+            let (camera, mut image, mut features) = frame_parts(k, noise, &mut rng);
+            change(j, &mut image, &mut features);
+            SequenceFrame::new(camera, &image, &features)
+        })
+        .collect()
 }
 
 #[test]
@@ -110,31 +128,31 @@ fn noise_drops_and_variance_follows() {
 fn other_surfaces_are_not_averaged_in() {
     // an occluder (at half the distance, much brighter) covers the left third of every
     // neighbour: the centre frame must not take its light
-    let mut win = window(0.0, 3);
-    for (j, f) in win.iter_mut().enumerate() {
+    let win = window_with(0.0, 3, |j, image, features| {
         if j == 4 {
-            continue;
+            return;
         }
         for y in 0..H {
             for x in 0..W / 3 {
                 let i = (y * W + x) as usize;
-                f.features_mut().depth[i] *= 0.5;
-                f.image_mut().pixels[i] = Vec3::splat(50.0);
+                features.depth[i] *= 0.5;
+                image.pixels[i] = Vec3::splat(50.0);
+                features.irradiance[i] = Vec3::splat(50.0);
             }
         }
-    }
+    });
     let (img, _) = gather(&refs(&win), 4, &TemporalParams::default());
     assert!(rms_rel(&img.pixels, &win[4].image().pixels) < 0.01);
     // the same with a crease: neighbours' normals tilted by 60 degrees
-    let mut win = window(0.0, 4);
-    for (j, f) in win.iter_mut().enumerate() {
+    let win = window_with(0.0, 4, |j, image, features| {
         if j != 4 {
-            f.features_mut().normal.iter_mut().for_each(|n| *n = Vec3::new(0.0, 0.866, 0.5));
-            f.image_mut().pixels.iter_mut().for_each(|p| *p *= 3.0);
+            features.normal.iter_mut().for_each(|n| *n = Vec3::new(0.0, 0.866, 0.5));
+            image.pixels.iter_mut().for_each(|p| *p *= 3.0);
+            features.irradiance.iter_mut().for_each(|p| *p *= 3.0);
         }
-    }
+    });
     let (img, _) = gather(&refs(&win), 4, &TemporalParams::default());
-    assert!(rms_rel(&img.pixels, &win[4].image().pixels) < 1e-5, "a crease was averaged across");
+    assert!(rms_rel(&img.pixels, &win[4].image().pixels) < 1e-3, "a crease was averaged across");
 }
 
 #[test]
@@ -142,7 +160,9 @@ fn radius_zero_and_window_ends() {
     let win = window(0.2, 5);
     let (img, f) = gather(&refs(&win), 4, &TemporalParams { radius: 0, ..TemporalParams::default() });
     assert_eq!(img.pixels.len(), win[4].image().pixels.len());
-    assert!(rms_rel(&img.pixels, &win[4].image().pixels) < 1e-5);
+    // reflectance, irradiance and the raw image are kept in half floats (relative error 2^-11
+    // each), so radius 0 reproduces the raw render to a few parts in ten thousand
+    assert!(rms_rel(&img.pixels, &win[4].image().pixels) < 2e-3);
     for (a, b) in f.variance.iter().zip(&win[4].features().variance) {
         assert!((a - b).abs() <= 1e-5 * b, "{a} vs {b}");
     }
@@ -169,8 +189,8 @@ fn same_bytes_for_any_thread_count() {
 fn bad_settings_name_the_field() {
     let ok = TemporalParams::default();
     assert!(ok.validate().is_ok());
-    let e = TemporalParams { radius: 33, ..ok }.validate().unwrap_err();
-    assert!(e.contains("radius") && e.contains("32"), "{e}");
+    let e = TemporalParams { radius: MAX_RADIUS + 1, ..ok }.validate().unwrap_err();
+    assert!(e.contains("radius") && e.contains(&MAX_RADIUS.to_string()), "{e}");
     let e = TemporalParams { depth_tolerance: f32::NAN, ..ok }.validate().unwrap_err();
     assert!(e.contains("depth_tolerance"), "{e}");
     let e = TemporalParams { min_normal_dot: 2.0, ..ok }.validate().unwrap_err();
@@ -185,10 +205,41 @@ fn neighbours_reduced_to_their_records_give_the_same_frame() {
     for (j, fr) in reduced.iter_mut().enumerate() {
         if j != 4 {
             fr.keep_neighbour_data();
-            assert!(fr.image().pixels.is_empty() && fr.features().albedo.is_empty());
+            assert!(fr.image().pixels.is_empty());
         }
     }
     let (img2, f2) = gather(&refs(&reduced), 4, &TemporalParams::default());
     assert_eq!(img, img2);
     assert_eq!(f, f2);
+}
+
+#[test]
+fn a_merged_block_reads_as_its_frames_do() {
+    // frames -4..-1 merged into the grid of frame -4, then read by frame 0 with frames 1..4
+    for (noise, seed) in [(0.0, 7), (0.2, 8)] {
+        let win = window(noise, seed);
+        let p = TemporalParams::default();
+        let block = Block::merge(&refs(&win[..4]), &p);
+        let sources: Vec<Source> = std::iter::once(block.source()).chain(win[5..].iter().map(|f| f.source())).collect();
+        let (with_block, fb) = gather_sources(&win[4], &sources, &p);
+        let (plain, fp) = gather(&refs(&win), 4, &p);
+        let truth = truth(&win[4]);
+        let (eb, ep) = (rms_rel(&with_block.pixels, &truth), rms_rel(&plain.pixels, &truth));
+        if noise == 0.0 {
+            // exact reprojection: the block changes nothing but float rounding
+            assert!(eb < 0.01, "noise-free through a block: {eb}");
+        } else {
+            // as much noise removed (two bilinear reads blur a little more), and the variance
+            // guide follows
+            assert!(eb < 1.1 * ep && eb < 0.4 * rms_rel(&win[4].image().pixels, &truth), "block {eb}, frames {ep}");
+            let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+            let ratio = mean(&fb.variance) / mean(&fp.variance);
+            assert!(ratio > 0.5 && ratio < 1.5, "variance ratio {ratio}");
+        }
+        // a block of one frame is that frame
+        let one = Block::merge(&refs(&win[..1]), &p);
+        let (a, _) = gather_sources(&win[4], &[one.source()], &p);
+        let (b, _) = gather_sources(&win[4], &[win[0].source()], &p);
+        assert_eq!(a, b);
+    }
 }

@@ -170,11 +170,6 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
     // per timed frame: raster, shading, window, spatial filter, all (seconds)
     let mut rows: Vec<[f64; 5]> = vec![];
     for k in start + 1..=start + b.frames {
-        if std::env::var_os("EVBLUR_BENCH_FILL").is_some() {
-            let pose = plan.trajectory.pose_at(plan.clock.time_ns(k))?;
-            let settings = simulator::dataset::writer::render_settings(&plan, &pose, k, false);
-            eprintln!("{:?}", renderer.radiance_cache(&settings).map(|c| c.filled()));
-        }
         let before = (seq.raster_time, seq.render_time, seq.gather_time, seq.denoise_time);
         let t = Instant::now();
         seq.frame(k)?;

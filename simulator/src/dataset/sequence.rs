@@ -144,7 +144,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             // a block is merged as soon as its last frame is rendered
             let first = (next + 1).wrapping_sub(BLOCK_FRAMES);
             if self.temporal.radius >= BLOCK_FRAMES
-                && (next + 1) % BLOCK_FRAMES == 0
+                && (next + 1).is_multiple_of(BLOCK_FRAMES)
                 && self.window.front().is_some_and(|(i, _)| *i <= first)
             {
                 let t = Instant::now();

@@ -361,12 +361,8 @@ fn accumulate_row(
             let (normal, emissive) = (row[x].normal, row[x].signed_depth < 0.0);
             let (x0, y0) = (qx.floor(), qy.floor());
             let (fx, fy) = (qx - x0, qy - y0);
-            let taps = [
-                (0, 0, (1.0 - fx) * (1.0 - fy)),
-                (1, 0, fx * (1.0 - fy)),
-                (0, 1, (1.0 - fx) * fy),
-                (1, 1, fx * fy),
-            ];
+            let taps =
+                [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)];
             for (dx, dy, bilinear) in taps {
                 let (tx, ty) = (x0 as i64 + dx, y0 as i64 + dy);
                 if tx < 0 || ty < 0 || tx >= w as i64 || ty >= h as i64 || bilinear <= 0.0 {

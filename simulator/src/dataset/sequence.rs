@@ -8,9 +8,9 @@
 //! many windows it serves; asking for a frame further on drops what no later window needs. A
 //! frame is a pure function of the plan and its index: a run that starts at frame `m` (a resumed
 //! run) re-renders the `radius` frames before it and gets the same bytes as one that started at
-//! 0. Memory: the `radius` frames after the current one (about 10.6 MB each at 600x400), the
-//! `radius` before it reduced to what a neighbour needs (7.7 MB each) and the blocks of
-//! [`BLOCK_FRAMES`] frames spanning the window (7.7 MB each): about 1.3 GB at a radius of 64.
+//! 0. Memory: the current frame and the `radius` after it (about 11 MB each at 600x400, lighting,
+//! reflectance and the raw render in half floats) and the `radius` before it reduced to what a
+//! neighbour needs (6.7 MB each): about 0.6 GB at the default radius of 32.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -21,7 +21,7 @@ use super::DatasetError;
 use crate::render::denoise::{denoise, DenoiseParams};
 use crate::render::film::Image;
 use crate::render::integrator::Renderer;
-use crate::render::temporal::{gather_sources, Block, SequenceFrame, Source, TemporalParams, BLOCK_FRAMES};
+use crate::render::temporal::{gather_sources, SequenceFrame, Source, TemporalParams};
 
 /// Renders and filters the frames of a plan's sequence (see the [module docs](self)).
 pub struct SequenceRenderer<'p, 'r> {
@@ -31,9 +31,6 @@ pub struct SequenceRenderer<'p, 'r> {
     temporal: TemporalParams,
     /// Consecutive raw renders `(index, frame)` (only with denoising).
     window: VecDeque<(usize, SequenceFrame)>,
-    /// Blocks `(b, block)` of the frames `b B..(b + 1) B` merged (see
-    /// [`crate::render::temporal`]), for the window's sides; only with a radius of at least `B`.
-    blocks: VecDeque<(usize, Block)>,
     /// Raw renders made so far.
     pub renders: usize,
     /// Wall time spent rendering.
@@ -58,7 +55,6 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             spp,
             temporal: TemporalParams { radius, ..TemporalParams::default() },
             window: VecDeque::new(),
-            blocks: VecDeque::new(),
             renders: 0,
             render_time: Duration::ZERO,
             raster_time: Duration::ZERO,
@@ -78,6 +74,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             self.render_time += t.elapsed();
             return Ok(img);
         }
+        assert!(self.window.front().is_none_or(|(i, _)| *i <= k), "frames asked out of order");
         let r = self.temporal.radius;
         let (lo, hi) = (k.saturating_sub(r), (k + r).min(self.plan.clock.n_frames - 1));
         self.fill(lo, hi)?;
@@ -88,26 +85,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         let t = Instant::now();
         let window = self.window.make_contiguous();
         debug_assert_eq!(window[k - lo].0, k);
-        // each side of the window: whole blocks where they fit, single frames elsewhere
-        let mut sources: Vec<Source> = Vec::with_capacity(2 * r);
-        for (a, z) in [(lo, k), (k + 1, hi + 1)] {
-            let mut j = a;
-            while j < z {
-                let block = (j % BLOCK_FRAMES == 0 && j + BLOCK_FRAMES <= z)
-                    .then(|| self.blocks.iter().find(|(b, _)| *b == j / BLOCK_FRAMES))
-                    .flatten();
-                match block {
-                    Some((_, b)) => {
-                        sources.push(b.source());
-                        j += BLOCK_FRAMES;
-                    }
-                    None => {
-                        sources.push(window[j - lo].1.source());
-                        j += 1;
-                    }
-                }
-            }
-        }
+        let sources: Vec<Source> = (lo..=hi).filter(|&j| j != k).map(|j| window[j - lo].1.source()).collect();
         let (img, features) = gather_sources(&window[k - lo].1, &sources, &self.temporal);
         self.gather_time += t.elapsed();
         let out = denoise(&img, &features, &DenoiseParams::default());
@@ -123,12 +101,8 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
 
     /// Make the window hold exactly the raw renders `lo..=hi` (rendering the missing ones).
     fn fill(&mut self, lo: usize, hi: usize) -> Result<(), DatasetError> {
-        assert!(self.window.front().is_none_or(|(i, _)| *i <= lo + self.temporal.radius), "frames asked out of order");
         while self.window.front().is_some_and(|(i, _)| *i < lo) {
             self.window.pop_front();
-        }
-        while self.blocks.front().is_some_and(|(b, _)| (b + 1) * BLOCK_FRAMES <= lo) {
-            self.blocks.pop_front();
         }
         let mut next = self.window.back().map_or(lo, |(i, _)| i + 1);
         while next <= hi {
@@ -141,19 +115,6 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             self.renders += 1;
             self.render_time += t.elapsed();
             self.window.push_back((next, SequenceFrame::new(settings.camera, &image, &features)));
-            // a block is merged as soon as its last frame is rendered
-            let first = (next + 1).wrapping_sub(BLOCK_FRAMES);
-            if self.temporal.radius >= BLOCK_FRAMES
-                && (next + 1).is_multiple_of(BLOCK_FRAMES)
-                && self.window.front().is_some_and(|(i, _)| *i <= first)
-            {
-                let t = Instant::now();
-                let frames: Vec<&SequenceFrame> =
-                    self.window.iter().filter(|(i, _)| *i >= first).map(|(_, f)| f).collect();
-                self.blocks.push_back((first / BLOCK_FRAMES, Block::merge(&frames, &self.temporal)));
-                self.denoise_time += t.elapsed();
-                self.gather_time += t.elapsed();
-            }
             next += 1;
         }
         Ok(())

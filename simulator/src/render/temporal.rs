@@ -21,14 +21,12 @@
 //! reprojected pixels carry independent samples, so averaging them removes such jumps where a
 //! single frame's spatial filter cannot tell them from real lighting edges.
 //!
-//! Blocks: reading every neighbour costs a reprojection per neighbour and pixel, which grows
-//! with the radius. So [`BLOCK_FRAMES`] consecutive frames (aligned: frames `bB..bB+B-1`) are
-//! merged once into the pixel grid of their first frame ([`Block::merge`]: the same
-//! reprojection, keeping the weighted sums and the weight per pixel), and a window reads a
-//! whole block where the block lies entirely on one side of its centre: a window of radius 64
-//! reads about 30 sources instead of 128. A block's frames pass through two bilinear reads
-//! instead of one (a slight extra blur of the lighting) and what its first frame does not see
-//! is lost to it. [`gather_sources`] takes any list of frames and blocks.
+//! Reading every neighbour costs a reprojection per neighbour and pixel (about 0.3 s per
+//! 600x400 frame at radius 32 on 2 cores). Merging runs of 8 frames once into the grid of their
+//! first and reading the merged blocks was measured and not adopted: it cut that to 0.13 s but
+//! raised the noise-induced events (factory at 300x200, radius 16, 4 spp: 16.6% -> 17.9%, and
+//! 19.0% reading only blocks): two bilinear reads blur the lighting and what a block's first
+//! frame does not see is lost to it.
 //!
 //! Reprojection assumes a static scene (only the camera moves) and view-independent shading at
 //! the first hit: glossy highlights are averaged over the window (±32 ms at the dataset default
@@ -46,8 +44,8 @@ use crate::scene::Camera;
 /// One rendered frame of a sequence, kept compact: its camera, the per-pixel record a window
 /// reads of it ([`Tap`]: lighting, variance, normal, distance) and, while it may still be a
 /// window's centre, its reflectance, directly seen light and raw render in half floats (the
-/// filtered output is rounded to halves anyway). About 44 bytes a pixel (10.6 MB at 600x400),
-/// 32 once reduced to a neighbour ([`SequenceFrame::keep_neighbour_data`]).
+/// filtered output is rounded to halves anyway). About 46 bytes a pixel (11 MB at 600x400),
+/// 28 once reduced to a neighbour ([`SequenceFrame::keep_neighbour_data`]).
 #[derive(Clone, Debug)]
 pub struct SequenceFrame {
     camera: Camera,
@@ -72,18 +70,16 @@ fn from_half3(h: Half3) -> Vec3 {
     Vec3::new(h[0].to_f32(), h[1].to_f32(), h[2].to_f32())
 }
 
-/// What the window reads of a source's pixel: weighted sums of demodulated irradiance (half
-/// floats) and of its variance over the squared reflectance luminance (weights squared), the
-/// weight, and the normal and hit distance of the surface they belong to, the distance negated
-/// when the camera ray sees an emitter (distances are positive). A frame's own pixel has weight
-/// 1. 32 bytes.
+/// What the window reads of a neighbour's pixel: demodulated irradiance (half floats), its
+/// variance over the squared reflectance luminance, and the normal and hit distance of the
+/// surface, the distance negated when the camera ray sees an emitter (distances are positive).
+/// 28 bytes.
 #[derive(Clone, Copy, Debug)]
 struct Tap {
     irradiance: Half3,
     variance: f32,
     normal: Vec3,
     signed_depth: f32,
-    weight: f32,
 }
 
 impl Tap {
@@ -93,54 +89,11 @@ impl Tap {
     }
 }
 
-/// One input of [`gather_sources`]: a frame ([`SequenceFrame::source`]) or a [`Block`]
-/// ([`Block::source`]).
+/// One input of [`gather_sources`]: a neighbouring frame ([`SequenceFrame::source`]).
 #[derive(Clone, Copy)]
 pub struct Source<'a> {
     camera: &'a Camera,
     taps: &'a [Tap],
-}
-
-/// Frames per [`Block`].
-pub const BLOCK_FRAMES: usize = 8;
-
-/// Consecutive frames merged into the pixel grid of the first (see the [module docs](self)).
-#[derive(Clone, Debug)]
-pub struct Block {
-    camera: Camera,
-    taps: Vec<Tap>,
-}
-
-impl Block {
-    /// Merge `frames` (consecutive, of one size; they may be reduced to their neighbour data)
-    /// into the grid of the first: per pixel, its own tap plus the others' taps at the same
-    /// surface point, as [`gather`] reads them.
-    pub fn merge(frames: &[&SequenceFrame], p: &TemporalParams) -> Block {
-        let first = frames[0];
-        let (w, h) = (first.width, first.height);
-        let others: Vec<Source> = frames[1..].iter().map(|f| f.source()).collect();
-        let centre = first.source();
-        let taps = (0..h as usize)
-            .into_par_iter()
-            .flat_map_iter(|y| {
-                let sums = accumulate_row(&centre, &others, p, w, h, y);
-                let row = &centre.taps[y * w as usize..(y + 1) * w as usize];
-                sums.into_iter().zip(row).map(|((irradiance, variance, weight), t)| Tap {
-                    irradiance: to_half3(irradiance),
-                    variance,
-                    weight,
-                    normal: t.normal,
-                    signed_depth: t.signed_depth,
-                })
-            })
-            .collect();
-        Block { camera: first.camera.clone(), taps }
-    }
-
-    /// The block as an input of [`gather_sources`].
-    pub fn source(&self) -> Source<'_> {
-        Source { camera: &self.camera, taps: &self.taps }
-    }
 }
 
 impl SequenceFrame {
@@ -160,7 +113,6 @@ impl SequenceFrame {
                     variance: f.variance[t] / (la * la),
                     normal: f.normal[t],
                     signed_depth: if emissive { -f.depth[t] } else { f.depth[t] },
-                    weight: 1.0,
                 }
             })
             .collect();
@@ -283,8 +235,8 @@ pub fn gather(window: &[&SequenceFrame], center: usize, p: &TemporalParams) -> (
     gather_sources(window[center], &sources, p)
 }
 
-/// [`gather`] from any frames and blocks: `centre`'s lighting with that of `sources` averaged
-/// in, each frame in them weighing as much as the centre. Panics if the sizes differ (a
+/// [`gather`] from any list of neighbours: `centre`'s lighting with that of `sources` averaged
+/// in, each weighing as much as the centre. Panics if the sizes differ (a
 /// programming error).
 pub fn gather_sources(centre: &SequenceFrame, sources: &[Source], p: &TemporalParams) -> (Image, Features) {
     let (w, h) = (centre.width, centre.height);
@@ -315,7 +267,7 @@ pub fn gather_sources(centre: &SequenceFrame, sources: &[Source], p: &TemporalPa
     (Image { width: w, height: h, pixels }, features)
 }
 
-/// Row `y` of the window: per pixel of `centre` (a `w` x `h` frame or block), its own weighted
+/// Row `y` of the window: per pixel of `centre` (a `w` x `h` frame), its own weighted
 /// sums plus those `sources` hold at the same surface point: (irradiance, variance with the
 /// weights squared, weight).
 fn accumulate_row(
@@ -336,7 +288,7 @@ fn accumulate_row(
         let pt = origin + dir * tap.signed_depth.abs();
         (point[0][x], point[1][x], point[2][x]) = (pt.x, pt.y, pt.z);
     }
-    let mut sums: Vec<(Vec3, f32, f32)> = row.iter().map(|t| (t.irradiance(), t.variance, t.weight)).collect();
+    let mut sums: Vec<(Vec3, f32, f32)> = row.iter().map(|t| (t.irradiance(), t.variance, 1.0)).collect();
     // per source: where each point lands in its image (pixel-centre coordinates) and how far
     // it is from its camera
     let (mut qx, mut qy, mut dist) = (vec![0.0f32; wu], vec![0.0f32; wu], vec![0.0f32; wu]);
@@ -377,7 +329,7 @@ fn accumulate_row(
                 }
                 *sum += tap.irradiance() * bilinear;
                 *var += tap.variance * bilinear * bilinear;
-                *wsum += tap.weight * bilinear;
+                *wsum += bilinear;
             }
         }
     }

@@ -212,34 +212,3 @@ fn neighbours_reduced_to_their_records_give_the_same_frame() {
     assert_eq!(img, img2);
     assert_eq!(f, f2);
 }
-
-#[test]
-fn a_merged_block_reads_as_its_frames_do() {
-    // frames -4..-1 merged into the grid of frame -4, then read by frame 0 with frames 1..4
-    for (noise, seed) in [(0.0, 7), (0.2, 8)] {
-        let win = window(noise, seed);
-        let p = TemporalParams::default();
-        let block = Block::merge(&refs(&win[..4]), &p);
-        let sources: Vec<Source> = std::iter::once(block.source()).chain(win[5..].iter().map(|f| f.source())).collect();
-        let (with_block, fb) = gather_sources(&win[4], &sources, &p);
-        let (plain, fp) = gather(&refs(&win), 4, &p);
-        let truth = truth(&win[4]);
-        let (eb, ep) = (rms_rel(&with_block.pixels, &truth), rms_rel(&plain.pixels, &truth));
-        if noise == 0.0 {
-            // exact reprojection: the block changes nothing but float rounding
-            assert!(eb < 0.01, "noise-free through a block: {eb}");
-        } else {
-            // as much noise removed (two bilinear reads blur a little more), and the variance
-            // guide follows
-            assert!(eb < 1.1 * ep && eb < 0.4 * rms_rel(&win[4].image().pixels, &truth), "block {eb}, frames {ep}");
-            let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
-            let ratio = mean(&fb.variance) / mean(&fp.variance);
-            assert!(ratio > 0.5 && ratio < 1.5, "variance ratio {ratio}");
-        }
-        // a block of one frame is that frame
-        let one = Block::merge(&refs(&win[..1]), &p);
-        let (a, _) = gather_sources(&win[4], &[one.source()], &p);
-        let (b, _) = gather_sources(&win[4], &[win[0].source()], &p);
-        assert_eq!(a, b);
-    }
-}

@@ -33,7 +33,7 @@ use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 /// 5: camera rays' first triangles come from a rasterised visibility buffer (differs from
 /// traced rays only within float error of edges). 6: the first-hit-only camera rays are grouped
 /// by triangle (distance, normal and emission at each group's mean film point).
-pub const PIPELINE_VERSION: u32 = 8;
+pub const PIPELINE_VERSION: u32 = 9;
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]

@@ -106,10 +106,10 @@ pub struct DatasetConfig {
     pub denoise: bool,
     /// With `denoise`: frames on each side whose lighting is reprojected into each sequence frame
     /// before the spatial filter ([`crate::render::temporal`]; 0 = spatial filter only, at most
-    /// 32). Separate sharp renders (`sharp_spp`) are single instants and get the spatial filter
-    /// only. Memory at 600x400: the `radius + 1` raw frames from the current one on with their
-    /// buffers (about 24 MB each) and the `radius` before it reduced to the packed records the
-    /// window reads (about 7.7 MB each): about 1.05 GB at radius 32.
+    /// [`crate::render::temporal::MAX_RADIUS`]). Separate sharp renders (`sharp_spp`) are single
+    /// instants and get the spatial filter only. Memory at 600x400: the `radius + 1` frames from
+    /// the current one on with their buffers (about 11 MB each) and the `radius` before it
+    /// reduced to the records the window reads (about 6.7 MB each): about 0.6 GB at radius 32.
     pub temporal_radius: u32,
     /// With `denoise`: camera rays per pixel for the filters' guide buffers (reflectance, directly
     /// seen emission, depth, normal); the first `spp` are shaded paths, the others stop at their

@@ -247,81 +247,102 @@ pub fn gather_sources(centre: &SequenceFrame, sources: &[Source], p: &TemporalPa
     let mut variance = vec![0.0f32; n];
     let mut irradiance = vec![Vec3::ZERO; n];
     let fk = centre.features();
+    let band = BAND_ROWS * w as usize;
     pixels
-        .par_chunks_mut(w as usize)
-        .zip(variance.par_chunks_mut(w as usize))
-        .zip(irradiance.par_chunks_mut(w as usize))
+        .par_chunks_mut(band)
+        .zip(variance.par_chunks_mut(band))
+        .zip(irradiance.par_chunks_mut(band))
         .enumerate()
-        .for_each(|(y, ((row, row_var), row_irr))| {
-            let sums = accumulate_row(&own, sources, p, w, h, y);
-            let row_start = y * w as usize;
-            for (x, (sum, var, wsum)) in sums.into_iter().enumerate() {
-                let i = row_start + x;
+        .for_each(|(b, ((px, px_var), px_irr))| {
+            let start = b * band;
+            let sums = accumulate_band(&own, sources, p, w, h, start / w as usize, px.len() / w as usize);
+            for (k, (sum, var, wsum)) in sums.into_iter().enumerate() {
+                let i = start + k;
                 let la = luminance(fk.albedo[i].max(Vec3::splat(MIN_ALBEDO))).max(MIN_ALBEDO);
-                row_irr[x] = sum / wsum;
-                row[x] = row_irr[x] * fk.albedo[i] + fk.emission[i];
-                row_var[x] = var / (wsum * wsum) * la * la;
+                px_irr[k] = sum / wsum;
+                px[k] = px_irr[k] * fk.albedo[i] + fk.emission[i];
+                px_var[k] = var / (wsum * wsum) * la * la;
             }
         });
     let features = Features { variance, irradiance, ..fk };
     (Image { width: w, height: h, pixels }, features)
 }
 
-/// Row `y` of the window: per pixel of `centre` (a `w` x `h` frame), its own weighted
-/// sums plus those `sources` hold at the same surface point: (irradiance, variance with the
-/// weights squared, weight).
-fn accumulate_row(
+/// Rows gathered together: a source's image rows that neighbouring rows of the centre read
+/// (a bilinear read spans two) are then still in the cache.
+const BAND_ROWS: usize = 8;
+
+/// Rows `y0..y0 + rows` of the window: per pixel of `centre` (a `w` x `h` frame), its own
+/// weighted sums plus those `sources` hold at the same surface point: (irradiance, variance
+/// with the weights squared, weight).
+fn accumulate_band(
     centre: &Source,
     sources: &[Source],
     p: &TemporalParams,
     w: u32,
     h: u32,
-    y: usize,
+    y0: usize,
+    rows: usize,
 ) -> Vec<(Vec3, f32, f32)> {
     let wu = w as usize;
+    let n = wu * rows;
     let origin = centre.camera.origin();
-    let row = &centre.taps[y * wu..(y + 1) * wu];
-    // the row's first-hit points, one plane per coordinate (so the projections vectorise)
-    let mut point = [vec![0.0f32; wu], vec![0.0f32; wu], vec![0.0f32; wu]];
-    for (x, tap) in row.iter().enumerate() {
+    let taps = &centre.taps[y0 * wu..y0 * wu + n];
+    // the band's first-hit points, one plane per coordinate (so the projections vectorise)
+    let mut point = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
+    for (k, tap) in taps.iter().enumerate() {
+        let (x, y) = (k % wu, y0 + k / wu);
         let dir = centre.camera.direction(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h);
         let pt = origin + dir * tap.signed_depth.abs();
-        (point[0][x], point[1][x], point[2][x]) = (pt.x, pt.y, pt.z);
+        (point[0][k], point[1][k], point[2][k]) = (pt.x, pt.y, pt.z);
     }
-    let mut sums: Vec<(Vec3, f32, f32)> = row.iter().map(|t| (t.irradiance(), t.variance, 1.0)).collect();
+    let mut sums: Vec<(Vec3, f32, f32)> = taps.iter().map(|t| (t.irradiance(), t.variance, 1.0)).collect();
     // per source: where each point lands in its image (pixel-centre coordinates) and how far
     // it is from its camera
-    let (mut qx, mut qy, mut dist) = (vec![0.0f32; wu], vec![0.0f32; wu], vec![0.0f32; wu]);
-    // one source at a time over the whole row (each pixel still adds its sources in order, so
+    let (mut qx, mut qy, mut dist) = (vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]);
+    let (wf, hf) = (w as f32, h as f32);
+    // one source at a time over the whole band (each pixel still adds its sources in order, so
     // the sums are those of a per-pixel loop): a few memory streams at a time
     for src in sources {
         let origin_j = src.camera.origin();
         let projector = src.camera.projector(w, h);
         // the projections, without branches; NaN marks a point behind the camera
-        for (x, ((qx, qy), dist)) in qx.iter_mut().zip(qy.iter_mut()).zip(dist.iter_mut()).enumerate() {
-            let pt = Vec3::new(point[0][x], point[1][x], point[2][x]);
+        for (k, ((qx, qy), dist)) in qx.iter_mut().zip(qy.iter_mut()).zip(dist.iter_mut()).enumerate() {
+            let pt = Vec3::new(point[0][k], point[1][k], point[2][k]);
             let q = projector.project_or_nan(pt);
             (*qx, *qy) = (q.x - 0.5, q.y - 0.5);
             *dist = (pt - origin_j).length();
         }
-        for (x, (sum, var, wsum)) in sums.iter_mut().enumerate() {
-            let (qx, qy, dist) = (qx[x], qy[x], dist[x]);
+        for (k, (sum, var, wsum)) in sums.iter_mut().enumerate() {
+            let (qx, qy, dist) = (qx[k], qy[k], dist[k]);
             // entirely outside the source's image (NaN included): nothing to read
-            if !(qx > -1.0 && qy > -1.0 && qx < w as f32 && qy < h as f32) {
+            if !(qx > -1.0 && qy > -1.0 && qx < wf && qy < hf) {
                 continue;
             }
-            let (normal, emissive) = (row[x].normal, row[x].signed_depth < 0.0);
+            let (normal, emissive) = (taps[k].normal, taps[k].signed_depth < 0.0);
+            let tolerance = p.depth_tolerance * dist;
             let (x0, y0) = (qx.floor(), qy.floor());
             let (fx, fy) = (qx - x0, qy - y0);
-            let taps =
-                [(0, 0, (1.0 - fx) * (1.0 - fy)), (1, 0, fx * (1.0 - fy)), (0, 1, (1.0 - fx) * fy), (1, 1, fx * fy)];
-            for (dx, dy, bilinear) in taps {
-                let (tx, ty) = (x0 as i64 + dx, y0 as i64 + dy);
-                if tx < 0 || ty < 0 || tx >= w as i64 || ty >= h as i64 || bilinear <= 0.0 {
+            let bilinear = [(1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy];
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            // the four taps' indices (None: off the image)
+            let index = |dx: i64, dy: i64| {
+                let (tx, ty) = (x0 + dx, y0 + dy);
+                (tx >= 0 && ty >= 0 && tx < w as i64 && ty < h as i64).then(|| (ty as u32 * w + tx as u32) as usize)
+            };
+            let indices = if x0 >= 0 && y0 >= 0 && x0 + 1 < w as i64 && y0 + 1 < h as i64 {
+                let i = (y0 as u32 * w + x0 as u32) as usize;
+                [Some(i), Some(i + 1), Some(i + wu), Some(i + wu + 1)]
+            } else {
+                [index(0, 0), index(1, 0), index(0, 1), index(1, 1)]
+            };
+            for (i, bilinear) in indices.into_iter().zip(bilinear) {
+                let Some(i) = i else { continue };
+                if bilinear <= 0.0 {
                     continue;
                 }
-                let tap = &src.taps[(ty as u32 * w + tx as u32) as usize];
-                if (tap.signed_depth.abs() - dist).abs() > p.depth_tolerance * dist
+                let tap = &src.taps[i];
+                if (tap.signed_depth.abs() - dist).abs() > tolerance
                     || tap.normal.dot(normal) < p.min_normal_dot
                     || (tap.signed_depth < 0.0) != emissive
                 {

@@ -32,8 +32,9 @@ use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 /// `feature_spp` camera rays. 4: the temporal window weighs its frames equally (was a tent).
 /// 5: camera rays' first triangles come from a rasterised visibility buffer (differs from
 /// traced rays only within float error of edges). 6: the first-hit-only camera rays are grouped
-/// by triangle (distance, normal and emission at each group's mean film point).
-pub const PIPELINE_VERSION: u32 = 9;
+/// by triangle (distance, normal and emission at each group's mean film point). 7-9: compact
+/// sequence frames, grouping taken out. 10: grouping again, emission read per ray.
+pub const PIPELINE_VERSION: u32 = 10;
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]

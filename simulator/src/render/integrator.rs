@@ -286,7 +286,7 @@ impl<'a> Renderer<'a> {
                 let (mut refl, mut albedo) = (Vec3::ZERO, Vec3::ZERO);
                 for path in 0..p.paths {
                     let mut rng = SampleStream::new(p.sampler, key, path);
-                    let mut first = FirstHit { albedo: Vec3::ZERO, normal: n, depth: MISS_DEPTH, emission: Vec3::ZERO };
+                    let mut first = FirstHit::new(n);
                     let l = self.li_first(origin, dir, &s, &mut rng, &mut first, None, Some(Some(hit)), None);
                     if l.is_finite() {
                         refl += (l - first.emission).max(Vec3::ZERO);
@@ -348,7 +348,7 @@ impl<'a> Renderer<'a> {
             };
             let film = Vec2::new(x as f32 + c.x, y as f32 + c.y);
             let dir = film_rays.direction(film);
-            let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
+            let mut first = FirstHit::new(-dir);
             let spread = self.camera_spread(s, film);
             let hit = self.camera_hit(vis.filter(|v| i < v.samples).map(|v| v.prim(x, y, i)), origin, dir);
             let l = self.li_first(origin, dir, s, &mut rng, &mut first, spread, Some(hit), cache);
@@ -549,7 +549,7 @@ impl<'a> Renderer<'a> {
 
     /// Radiance arriving at `origin` from direction `dir` (one path sample).
     pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
-        let mut first = FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
+        let mut first = FirstHit::new(-dir);
         self.li_first(origin, dir, s, rng, &mut first, None, None, None)
     }
 
@@ -716,6 +716,13 @@ struct FirstHit {
     depth: f32,
     /// Radiance the camera ray sees directly: the hit's emission or, escaped, the environment.
     emission: Vec3,
+}
+
+impl FirstHit {
+    /// Nothing hit yet; `normal` is the one recorded if the ray escapes.
+    fn new(normal: Vec3) -> FirstHit {
+        FirstHit { albedo: Vec3::ZERO, normal, depth: MISS_DEPTH, emission: Vec3::ZERO }
+    }
 }
 
 /// One pixel's features: the means over its samples.

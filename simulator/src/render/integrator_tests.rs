@@ -400,15 +400,21 @@ fn radiance_cache_gives_the_same_bytes_whatever_the_threads_or_frame_order() {
 
 #[test]
 fn first_hit_rays_from_the_buffer_agree_with_traced_ones() {
-    // untextured walls with an emitter in view, and a finely textured floor seen at an angle
+    // untextured walls with an emitter in view, a finely textured floor seen at an angle, and
+    // the same floor glowing with the texture (textured emission, as screens and signs have)
     let (floor, mut floor_st) = checker_floor(7.0);
     floor_st.camera = Camera::look_at(Vec3::new(0.3, 1.0, 2.0), Vec3::new(0.0, 0.0, -1.0), Vec3::Y, 1.0);
+    let mut glowing = floor.clone();
+    glowing.materials[0].emission = Vec3::splat(2.0);
+    glowing.materials[0].emission_texture = glowing.materials[0].base_color_texture;
+    let glowing_st = floor_st.clone();
     let (room, mut room_st) = lit_room();
     // pixels of 0.008 rad (0.002 in a dataset frame)
     for st in [&mut floor_st, &mut room_st] {
         (st.width, st.height) = (160, 120);
     }
-    for (scene, st) in [(room, room_st), (floor, floor_st)] {
+    let glowing_st = RenderSettings { width: 160, height: 120, ..glowing_st };
+    for (scene, st) in [(room, room_st), (floor, floor_st), (glowing, glowing_st)] {
         let r = Renderer::new(&scene);
         let rays = 16;
         let vis = r.visibility(&st, rays);
@@ -430,8 +436,7 @@ fn first_hit_rays_from_the_buffer_agree_with_traced_ones() {
                 for i in 0..rays {
                     let c = vis.offset(x, y, i);
                     let dir = film_rays.direction(Vec2::new(x as f32 + c.x, y as f32 + c.y));
-                    let mut first =
-                        FirstHit { albedo: Vec3::ZERO, normal: -dir, depth: MISS_DEPTH, emission: Vec3::ZERO };
+                    let mut first = FirstHit::new(-dir);
                     r.first_hit(
                         r.camera_hit(None, st.camera.origin(), dir),
                         st.camera.origin(),

@@ -299,6 +299,17 @@ fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
     let (fixed, flicker) = (run(NoisePattern::Fixed, false), run(NoisePattern::PerFrame, false));
     assert_eq!((fixed.frames, fixed.spp, fixed.ref_spp, fixed.denoised), (12, 2, 8, false));
     assert!(fixed.unfiltered.is_none() && fixed.vs_unfiltered.is_none());
+    // the map holds the same differences, per pixel, and the overlay shows them
+    for r in [&fixed, &flicker] {
+        let m = &r.pipeline_map;
+        assert_eq!((m.pool, m.width, m.height), (1, r.width, r.height));
+        let sum = |v: &[u32]| v.iter().map(|&n| n as u64).sum::<u64>();
+        assert_eq!((sum(&m.excess), sum(&m.missing)), (r.pipeline.excess, r.pipeline.missing));
+        let img = m.overlay(&r.first_frame);
+        let reddish = img.pixels.iter().filter(|p| p.x > p.y && p.x > p.z).count();
+        let excess_only = m.excess.iter().zip(&m.missing).filter(|&(&e, &mi)| e.min(2) > mi.min(2)).count();
+        assert_eq!(reddish, excess_only, "red marks the blocks with more excess than missing events (up to 2)");
+    }
     let (fixed, flicker) = (fixed.pipeline, flicker.pipeline);
     assert!(fixed.test_events > 0 && fixed.ref_events > 0);
     // per-frame noise at 2 spp fires more than twice the events of the (less noisy) 8 spp reference

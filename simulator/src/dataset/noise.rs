@@ -76,12 +76,62 @@ impl Comparison {
         self.missing as f64 / self.ref_events.max(1) as f64
     }
 
+    /// Per block of `pool` x `pool` pixels (row-major over the `width` x `height` image's
+    /// blocks): `[excess, missing]` events.
+    fn map(test: &Counted, reference: &Counted, pool: u32, blocks: (u32, u32)) -> DiffMap {
+        let n = (blocks.0 * blocks.1) as usize;
+        let (mut excess, mut missing) = (vec![0u32; n], vec![0u32; n]);
+        for (k, &t) in &test.bins {
+            excess[k.0 as usize] += t.saturating_sub(*reference.bins.get(k).unwrap_or(&0));
+        }
+        for (k, &r) in &reference.bins {
+            missing[k.0 as usize] += r.saturating_sub(*test.bins.get(k).unwrap_or(&0));
+        }
+        DiffMap { pool, width: blocks.0, height: blocks.1, excess, missing }
+    }
+
     fn of(test: &Counted, reference: &Counted) -> Comparison {
         let excess =
             test.bins.iter().map(|(k, &n)| n.saturating_sub(*reference.bins.get(k).unwrap_or(&0)) as u64).sum();
         let missing =
             reference.bins.iter().map(|(k, &n)| n.saturating_sub(*test.bins.get(k).unwrap_or(&0)) as u64).sum();
         Comparison { test_events: test.total, ref_events: reference.total, excess, missing }
+    }
+}
+
+/// Where the dataset's events differ from the reference's: per block of `pool` x `pool` pixels,
+/// row-major.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DiffMap {
+    /// Side of a block (pixels).
+    pub pool: u32,
+    /// Blocks per row.
+    pub width: u32,
+    /// Block rows.
+    pub height: u32,
+    /// Test events the reference does not have, per block.
+    pub excess: Vec<u32>,
+    /// Reference events the test does not have, per block.
+    pub missing: Vec<u32>,
+}
+
+impl DiffMap {
+    /// The map drawn over `frame` (dimmed to grey): excess events in red, missing ones in blue
+    /// (full colour from 2 events per block on), as a linear image of `frame`'s size.
+    pub fn overlay(&self, frame: &crate::render::film::Image) -> crate::render::film::Image {
+        let (w, h) = (frame.width, frame.height);
+        let pool = self.pool.max(1);
+        let pixels = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let b = ((y / pool) * self.width + x / pool) as usize;
+                let grey = 0.25 * crate::render::integrator::luminance(frame.pixels[i as usize]).clamp(0.0, 1.0);
+                let level = |n: u32| (n as f32 / 2.0).min(1.0);
+                let (e, m) = (level(self.excess[b]), level(self.missing[b]));
+                glam::Vec3::new(grey + (1.0 - grey) * e, grey * (1.0 - e.max(m)), grey + (1.0 - grey) * m)
+            })
+            .collect();
+        crate::render::film::Image { width: w, height: h, pixels }
     }
 }
 
@@ -102,6 +152,10 @@ pub struct NoiseReport {
     pub denoised: bool,
     /// The dataset's frames at `spp` against the same pipeline at `ref_spp`: the noise measure.
     pub pipeline: Comparison,
+    /// Where the events of [`NoiseReport::pipeline`] differ.
+    pub pipeline_map: DiffMap,
+    /// The segment's first frame as the dataset renders it (linear), to show the map on.
+    pub first_frame: crate::render::film::Image,
     /// With denoising on: the denoised frames at `spp` against *unfiltered* frames at `ref_spp`
     /// (what the filter changes besides noise shows up here, next to the reference's own noise).
     pub vs_unfiltered: Option<Comparison>,
@@ -135,7 +189,7 @@ fn event_counts(
     spp: u32,
     opts: &NoiseOptions,
     pb: &ProgressBar,
-) -> Result<(Vec<Counted>, usize), DatasetError> {
+) -> Result<(Vec<Counted>, usize, crate::render::film::Image), DatasetError> {
     let c = &plan.config;
     let variants = if c.denoise { 2 } else { 1 };
     let mut sims = (0..variants)
@@ -145,6 +199,7 @@ fn event_counts(
     let t_start = plan.clock.time_ns(frames.start);
     let mut out: Vec<Counted> = (0..variants).map(|_| Counted::default()).collect();
     let mut seq = SequenceRenderer::new(plan, renderer, spp);
+    let mut first = None;
     for k in frames {
         let t_ns = plan.clock.time_ns(k);
         let mut images = vec![seq.frame(k)?];
@@ -154,18 +209,26 @@ fn event_counts(
         for ((mut img, sim), counted) in images.into_iter().zip(&mut sims).zip(&mut out) {
             round_to_f16(&mut img);
             img.pixels.iter_mut().for_each(|p| *p *= c.gain);
+            if first.is_none() {
+                first = Some(img.clone());
+            }
             let mut sink = VecSink::default();
             sim.step(&img, t_ns, &mut sink).map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
             for e in &sink.events {
                 let (bx, by) = (e.x as u32 / opts.pool, e.y as u32 / opts.pool);
-                let key = (by * c.width + bx, e.p > 0, (e.t_ns - t_start) / opts.window_ns.unwrap_or(i64::MAX));
+                let key = (
+                    by * c.width.div_ceil(opts.pool) + bx,
+                    e.p > 0,
+                    (e.t_ns - t_start) / opts.window_ns.unwrap_or(i64::MAX),
+                );
                 *counted.bins.entry(key).or_insert(0) += 1;
                 counted.total += 1;
             }
         }
         pb.inc(spp as u64);
     }
-    Ok((out, seq.renders))
+    let first = first.expect("a segment has at least 2 frames");
+    Ok((out, seq.renders, first))
 }
 
 /// Measure the noise-induced events of `plan`'s settings on a segment (see the module docs).
@@ -198,11 +261,11 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
     let range = start..start + frames;
     pb.set_message("test");
     let t = Instant::now();
-    let (test, renders) = event_counts(plan, &renderer, range.clone(), c.spp, opts, &pb)?;
+    let (test, renders, first_frame) = event_counts(plan, &renderer, range.clone(), c.spp, opts, &pb)?;
     let test_time = t.elapsed();
     pb.set_message("reference");
     let t = Instant::now();
-    let (reference, _) = event_counts(plan, &renderer, range, ref_spp, opts, &pb)?;
+    let (reference, _, _) = event_counts(plan, &renderer, range, ref_spp, opts, &pb)?;
     let ref_time = t.elapsed();
     pb.finish_and_clear();
     Ok(NoiseReport {
@@ -213,6 +276,13 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
         ref_spp,
         denoised: c.denoise,
         pipeline: Comparison::of(&test[0], &reference[0]),
+        pipeline_map: Comparison::map(
+            &test[0],
+            &reference[0],
+            opts.pool,
+            (c.width.div_ceil(opts.pool), c.height.div_ceil(opts.pool)),
+        ),
+        first_frame,
         vs_unfiltered: c.denoise.then(|| Comparison::of(&test[0], &reference[1])),
         unfiltered: c.denoise.then(|| Comparison::of(&test[1], &reference[1])),
         renders,

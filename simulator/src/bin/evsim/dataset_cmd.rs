@@ -230,6 +230,10 @@ pub struct NoiseArgs {
     /// Pool events over square blocks of this many pixels (1 = per pixel).
     #[arg(long, default_value_t = 1)]
     pub pool: u32,
+    /// Also write where the events differ (PNG: the first frame in grey, test events the
+    /// reference lacks in red, reference events the test lacks in blue).
+    #[arg(long)]
+    pub map: Option<PathBuf>,
     /// Settings overrides.
     #[command(flatten)]
     pub overrides: OverrideArgs,
@@ -258,7 +262,13 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         pool: args.pool,
         progress: !args.quiet,
     };
+    if let Some(m) = args.map.as_ref().filter(|m| !m.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"))) {
+        anyhow::bail!("--map {}: give a .png file name", m.display());
+    }
     let r = measure(&plan, &opts)?;
+    if let Some(m) = &args.map {
+        simulator::image_io::write_image(&r.pipeline_map.overlay(&r.first_frame), m)?;
+    }
     let per = format!(
         "per {} and {}x{} px block",
         args.window_ms.map(|w| format!("{w} ms window")).unwrap_or_else(|| "segment".into()),

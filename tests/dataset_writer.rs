@@ -266,6 +266,11 @@ fn bad_settings_name_the_field() {
     check(&|t| t.replace("views = 9", "views = 200"), &["dataset.views", "do not fit"]);
     check(&|t| t.replace("first_view_ms = 12.0", "first_view_ms = 2.0"), &["dataset.first_view_ms"]);
     check(&|t| t.replace("spp = 2\n", "spp = 2\nspeed = 3\n"), &["speed"]);
+    check(
+        &|t| t.replace("spp = 2\n", "spp = 2\nadaptive_variance = 0.0\n"),
+        &["dataset.adaptive_variance", "positive"],
+    );
+    check(&|t| t.replace("spp = 2\n", "spp = 2\nspp_max = 5000\n"), &["dataset.spp_max"]);
     check(&|t| t.split("[trajectory]").next().unwrap().to_string(), &["trajectory", "missing"]);
     check(&|t| t.replace("sharp_spp = 4", "sharp_spp = 1"), &["dataset.sharp_spp"]);
     std::fs::write(&toml, &text).unwrap();
@@ -298,6 +303,7 @@ fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
     let run = |pattern, denoise| run_radius(pattern, denoise, 4);
     let (fixed, flicker) = (run(NoisePattern::Fixed, false), run(NoisePattern::PerFrame, false));
     assert_eq!((fixed.frames, fixed.spp, fixed.ref_spp, fixed.denoised), (12, 2, 8, false));
+    assert_eq!(fixed.mean_spp, 2.0, "uniform sampling: spp in every pixel of every render");
     assert!(fixed.unfiltered.is_none() && fixed.vs_unfiltered.is_none());
     // the map holds the same differences, per pixel, and the overlay shows them
     for r in [&fixed, &flicker] {

@@ -1,6 +1,7 @@
 //! How many events does path-tracing noise fire? A short segment of the trajectory is rendered
-//! twice, at the dataset's `spp` and at `factor x spp` (the reference), with the dataset's noise
-//! pattern; both sequences go through the dataset's filters ([`super::sequence`]: the temporal
+//! twice, at the dataset's `spp` and at `factor x spp` (the reference; with adaptive sampling,
+//! `factor` times the test's mean samples per pixel, rounded up, in every pixel), with the
+//! dataset's noise pattern; both sequences go through the dataset's filters ([`super::sequence`]: the temporal
 //! window, which also renders the `temporal_radius` frames on each side of the segment, and the
 //! spatial filter) and the same event model, and the events are compared per pixel, polarity
 //! and time window.
@@ -164,6 +165,9 @@ pub struct NoiseReport {
     pub unfiltered: Option<Comparison>,
     /// Frames rendered per sequence: the segment plus the temporal window's margins.
     pub renders: usize,
+    /// Mean shaded samples per pixel of the test sequence's renders (`spp`, or more with
+    /// adaptive sampling).
+    pub mean_spp: f64,
     /// Wall time rendering the test sequence (and filtering it).
     pub test_time: Duration,
     /// Wall time rendering the reference (and filtering it).
@@ -180,16 +184,22 @@ struct Counted {
     total: u64,
 }
 
-/// Binned events of a sequence rendered at `spp`: `[as the dataset renders it, unfiltered]`
-/// (the second only when the dataset denoises; both from the same renders).
+/// What [`event_counts`] returns: the binned events, the renders made and their shaded
+/// samples, and the segment's first frame.
+type SequenceCounts = (Vec<Counted>, (usize, u64), crate::render::film::Image);
+
+/// Binned events of a sequence rendered at `spp` (`spp` in every pixel when `uniform`, else
+/// with the plan's adaptive sampling): `[as the dataset renders it, unfiltered]` (the second
+/// only when the dataset denoises; both from the same renders).
 fn event_counts(
     plan: &Plan,
     renderer: &Renderer,
     frames: std::ops::Range<usize>,
     spp: u32,
+    uniform: bool,
     opts: &NoiseOptions,
     pb: &ProgressBar,
-) -> Result<(Vec<Counted>, usize, crate::render::film::Image), DatasetError> {
+) -> Result<SequenceCounts, DatasetError> {
     let c = &plan.config;
     let variants = if c.denoise { 2 } else { 1 };
     let mut sims = (0..variants)
@@ -199,6 +209,9 @@ fn event_counts(
     let t_start = plan.clock.time_ns(frames.start);
     let mut out: Vec<Counted> = (0..variants).map(|_| Counted::default()).collect();
     let mut seq = SequenceRenderer::new(plan, renderer, spp);
+    if uniform {
+        seq = seq.uniform();
+    }
     let mut first = None;
     for k in frames {
         let t_ns = plan.clock.time_ns(k);
@@ -228,7 +241,7 @@ fn event_counts(
         pb.inc(spp as u64);
     }
     let first = first.expect("a segment has at least 2 frames");
-    Ok((out, seq.renders, first))
+    Ok((out, (seq.renders, seq.samples), first))
 }
 
 /// Measure the noise-induced events of `plan`'s settings on a segment (see the module docs).
@@ -250,22 +263,28 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
         ));
     }
     let c = &plan.config;
-    let ref_spp = c.spp * opts.factor;
     let pb = if opts.progress { ProgressBar::new(0) } else { ProgressBar::hidden() };
     pb.set_style(
         ProgressStyle::with_template("{msg:12} [{elapsed_precise}] {wide_bar} {percent:>3}% ETA {eta_precise}")
             .expect("valid template"),
     );
-    pb.set_length(frames as u64 * (c.spp + ref_spp) as u64);
+    // (with adaptive sampling the reference's share is an upper bound until the test is done)
+    pb.set_length(frames as u64 * (c.spp + opts.factor * c.spp.max(c.spp_max)) as u64);
     let renderer = Renderer::with_preset(&plan.scene, c.bvh);
     let range = start..start + frames;
     pb.set_message("test");
     let t = Instant::now();
-    let (test, renders, first_frame) = event_counts(plan, &renderer, range.clone(), c.spp, opts, &pb)?;
+    let (test, (renders, samples), first_frame) =
+        event_counts(plan, &renderer, range.clone(), c.spp, false, opts, &pb)?;
     let test_time = t.elapsed();
+    // factor x the test's mean samples per pixel (rounded up), in every pixel: `factor x spp`
+    // without adaptive sampling
+    let pixels = renders.max(1) as u64 * (c.width * c.height) as u64;
+    let ref_spp = opts.factor * samples.div_ceil(pixels).max(1) as u32;
+    pb.set_length(frames as u64 * (c.spp + ref_spp) as u64);
     pb.set_message("reference");
     let t = Instant::now();
-    let (reference, _, _) = event_counts(plan, &renderer, range, ref_spp, opts, &pb)?;
+    let (reference, _, _) = event_counts(plan, &renderer, range, ref_spp, true, opts, &pb)?;
     let ref_time = t.elapsed();
     pb.finish_and_clear();
     Ok(NoiseReport {
@@ -286,6 +305,7 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
         vs_unfiltered: c.denoise.then(|| Comparison::of(&test[0], &reference[1])),
         unfiltered: c.denoise.then(|| Comparison::of(&test[1], &reference[1])),
         renders,
+        mean_spp: samples as f64 / (renders.max(1) as f64 * (c.width * c.height) as f64),
         test_time,
         ref_time,
     })

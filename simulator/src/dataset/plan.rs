@@ -83,6 +83,10 @@ struct RenderIdentity<'a> {
     sampler: crate::render::sampler::SamplerKind,
     clamp_bits: u32,
     light_samples: u32,
+    /// Adaptive sampling (most samples, target variance bits); only written when on, so that
+    /// the keys of frames without it are those of earlier versions.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    adaptive: Option<(u32, u64)>,
     /// Only written when on, so that the keys of undenoised frames are those of earlier versions.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     denoise: bool,
@@ -249,6 +253,8 @@ impl Plan {
                 sampler: config.sampler,
                 clamp_bits: config.clamp.to_bits(),
                 light_samples: config.light_samples,
+                adaptive: (config.denoise && config.spp_max > config.spp)
+                    .then(|| (config.spp_max, config.adaptive_variance.to_bits())),
                 denoise: config.denoise,
                 temporal_radius: if config.denoise { config.temporal_radius } else { 0 },
                 feature_spp: if config.denoise && config.feature_spp > config.spp { config.feature_spp } else { 0 },
@@ -350,6 +356,15 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
         return bad(
             "dataset.radiance_cache",
             format!("{} must be at most 1024 paths per cache point (0 turns the cache off)", d.radiance_cache),
+        );
+    }
+    if d.spp_max > 4096 {
+        return bad("dataset.spp_max", format!("{} must be at most 4096 samples per pixel (0 = off)", d.spp_max));
+    }
+    if !(d.adaptive_variance > 0.0 && d.adaptive_variance.is_finite()) {
+        return bad(
+            "dataset.adaptive_variance",
+            format!("{} must be a positive relative variance (smaller = more samples)", d.adaptive_variance),
         );
     }
     if d.light_samples == 0 || d.light_samples > 64 {

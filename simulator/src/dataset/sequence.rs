@@ -28,11 +28,16 @@ pub struct SequenceRenderer<'p, 'r> {
     plan: &'p Plan,
     renderer: &'r Renderer<'p>,
     spp: u32,
+    /// Adaptive sampling's most samples per pixel (0 = off).
+    spp_max: u32,
     temporal: TemporalParams,
     /// Consecutive raw renders `(index, frame)` (only with denoising).
     window: VecDeque<(usize, SequenceFrame)>,
     /// Raw renders made so far.
     pub renders: usize,
+    /// Shaded samples of those renders (all pixels; more than `spp` each with adaptive
+    /// sampling).
+    pub samples: u64,
     /// Wall time spent rendering.
     pub render_time: Duration,
     /// Of `render_time`, the part spent rasterising the camera rays' visibility.
@@ -53,14 +58,23 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             plan,
             renderer,
             spp,
+            spp_max: c.spp_max,
             temporal: TemporalParams { radius, ..TemporalParams::default() },
             window: VecDeque::new(),
             renders: 0,
+            samples: 0,
             render_time: Duration::ZERO,
             raster_time: Duration::ZERO,
             denoise_time: Duration::ZERO,
             gather_time: Duration::ZERO,
         }
+    }
+
+    /// The same frames with `spp` samples in every pixel (no adaptive sampling): the noise
+    /// measurement's reference.
+    pub fn uniform(mut self) -> Self {
+        self.spp_max = 0;
+        self
     }
 
     /// Frame `k` as the dataset's stages see it (not yet rounded to halves). `k` must not be
@@ -71,6 +85,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             let t = Instant::now();
             let img = self.renderer.render(&settings, None);
             self.renders += 1;
+            self.samples += settings.spp as u64 * img.pixels.len() as u64;
             self.render_time += t.elapsed();
             return Ok(img);
         }
@@ -113,6 +128,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             let (image, features) = self.renderer.shade_with_features(&settings, &vis);
             drop(vis);
             self.renders += 1;
+            self.samples += features.samples;
             self.render_time += t.elapsed();
             self.window.push_back((next, SequenceFrame::new(settings.camera, &image, &features)));
             next += 1;
@@ -128,6 +144,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             .map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
         let mut s = render_settings(self.plan, &pose, k, false);
         s.spp = self.spp;
+        s.spp_max = self.spp_max;
         Ok(s)
     }
 }

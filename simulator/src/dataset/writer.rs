@@ -172,6 +172,8 @@ pub fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> Rende
         s.frame = (1 << 40) + k as u64;
     } else {
         s.spp = c.spp;
+        s.spp_max = c.spp_max;
+        s.adaptive_variance = c.adaptive_variance as f32;
         s.frame = match c.noise_pattern {
             NoisePattern::Fixed => 0,
             NoisePattern::PerFrame => k as u64,

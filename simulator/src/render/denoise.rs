@@ -430,6 +430,7 @@ mod tests {
             variance: vec![variance; n],
             emission: vec![Vec3::ZERO; n],
             irradiance: vec![Vec3::ZERO; n],
+            samples: 0,
         }
     }
 

@@ -75,6 +75,13 @@ pub struct RenderSettings {
     /// Lattice spacing of the radiance cache (world units; 0 = the scene's bounding-box
     /// diagonal over 128).
     pub cache_spacing: f32,
+    /// Adaptive sampling in [`super::integrator::Renderer::shade_with_features`]: pixels whose
+    /// first `spp` samples show a noisy estimate get up to this many in all; at most `spp`
+    /// (the default 0) = off.
+    pub spp_max: u32,
+    /// With `spp_max`: the relative variance of a pixel's estimate adaptive sampling aims at
+    /// (see [`crate::dataset::DatasetConfig::adaptive_variance`]).
+    pub adaptive_variance: f32,
 }
 
 impl RenderSettings {
@@ -97,6 +104,8 @@ impl RenderSettings {
             texture_filter: 0.0,
             radiance_cache: 0,
             cache_spacing: 0.0,
+            spp_max: 0,
+            adaptive_variance: 0.1,
         }
     }
 }

@@ -85,12 +85,18 @@ struct Group {
 }
 
 /// What [`Renderer::first_hit_rays`] adds its rays' first hits to.
+#[derive(Clone, Copy, Debug, Default)]
 pub(super) struct FirstHitSums {
     pub albedo: Vec3,
     pub normal: Vec3,
     pub depth: f32,
+    /// Over the `rays` rays only.
     pub emission: Vec3,
+    /// Rays in every sum.
     pub rays: u32,
+    /// Shaded rays whose sample was dropped (not finite): in the reflectance, normal and
+    /// distance sums, not in the emission's.
+    pub dropped: u32,
 }
 
 impl Renderer<'_> {

@@ -26,7 +26,7 @@ use super::radiance_cache::{lattice_bary, lattice_index, steps_for, CacheParams,
 use super::raster::{rasterise, FilmOffsets, Visibility};
 use super::sampler::{pixel_key, SampleStream, SamplerKind};
 use super::sampling::{power_heuristic, Frame};
-use crate::scene::Scene;
+use crate::scene::{FilmRays, Scene};
 
 /// Side of the square tiles rendered in parallel.
 pub const TILE: u32 = 16;
@@ -123,7 +123,7 @@ impl<'a> Renderer<'a> {
                 let mut out = Vec::with_capacity((TILE * TILE) as usize);
                 for y in ty * TILE..((ty + 1) * TILE).min(h) {
                     for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                        out.push(self.pixel_with_features(settings, x, y, 0, None, cache).0);
+                        out.push(self.pixel_color(settings, x, y, cache));
                     }
                 }
                 if let Some(pb) = progress {
@@ -163,13 +163,32 @@ impl<'a> Renderer<'a> {
         let feature_spp = settings.feature_spp.max(settings.spp);
         let cache = self.radiance_cache(settings);
         let cache = cache.as_deref();
-        let rows: Vec<Vec<(Vec3, PixelFeatures)>> = (0..h)
+        let rows: Vec<Vec<(ShadeSums, FirstHitSums)>> = (0..h)
             .into_par_iter()
-            .map(|y| (0..w).map(|x| self.pixel_with_features(settings, x, y, feature_spp, Some(vis), cache)).collect())
+            .map(|y| (0..w).map(|x| self.pixel_sums(settings, x, y, feature_spp, Some(vis), cache)).collect())
             .collect();
+        let mut sums: Vec<(ShadeSums, FirstHitSums)> = rows.concat();
+        let s = settings;
+        if s.spp_max > s.spp {
+            let target = adaptive_spp(&sums, w, h, s);
+            let film_rays = s.camera.film_rays(w, h);
+            sums.par_chunks_mut(w as usize).zip(target.par_chunks(w as usize)).enumerate().for_each(
+                |(y, (row, target))| {
+                    for (x, ((shade, _), &n)) in row.iter_mut().zip(target).enumerate() {
+                        if n > s.spp {
+                            let (x, y) = (x as u32, y as u32);
+                            let key = pixel_key(s.seed, y as u64 * w as u64 + x as u64, s.frame);
+                            self.shade_samples(s, x, y, s.spp..n, Some(vis), cache, key, &film_rays, shade, None);
+                        }
+                    }
+                },
+            );
+        }
         let mut img = Image::new(w, h);
         let mut f = Features::new(w, h);
-        for (i, (c, pf)) in rows.into_iter().flatten().enumerate() {
+        f.samples = sums.iter().map(|(shade, _)| shade.attempted as u64).sum();
+        for (i, (shade, feats)) in sums.iter().enumerate() {
+            let (c, pf) = finish_pixel(shade, feats);
             img.pixels[i] = c;
             f.albedo[i] = pf.albedo;
             f.normal[i] = pf.normal;
@@ -210,7 +229,7 @@ impl<'a> Renderer<'a> {
 
     /// Mean of `spp` box-filtered samples of pixel (x, y) (full paths: no radiance cache).
     pub fn pixel(&self, s: &RenderSettings, x: u32, y: u32) -> Vec3 {
-        self.pixel_with_features(s, x, y, 0, None, None).0
+        self.pixel_color(s, x, y, None)
     }
 
     /// The radiance cache `s` asks for (None when `s.radiance_cache` is 0 or paths are too
@@ -299,10 +318,16 @@ impl<'a> Renderer<'a> {
         Lattice { steps, values }
     }
 
-    /// [`Renderer::pixel`] and the pixel's first-hit features over `max(spp, feature_spp)`
-    /// camera rays (the first `spp` shaded); with `vis`, the camera rays' first triangles come
-    /// from it (see [`Renderer::camera_hit`]).
-    fn pixel_with_features(
+    /// The colour of pixel (`x`, `y`): the mean of its `spp` traced samples.
+    fn pixel_color(&self, s: &RenderSettings, x: u32, y: u32, cache: Option<&RadianceCache>) -> Vec3 {
+        let (shade, feats) = self.pixel_sums(s, x, y, 0, None, cache);
+        finish_pixel(&shade, &feats).0
+    }
+
+    /// The sums a pixel's colour and first-hit features are finished from ([`finish_pixel`]):
+    /// its first `spp` camera rays shaded and all `max(spp, feature_spp)` rays' first hits; with
+    /// `vis`, the rays' first triangles come from it (see [`Renderer::camera_hit`]).
+    fn pixel_sums(
         &self,
         s: &RenderSettings,
         x: u32,
@@ -310,30 +335,36 @@ impl<'a> Renderer<'a> {
         feature_spp: u32,
         vis: Option<&Visibility>,
         cache: Option<&RadianceCache>,
-    ) -> (Vec3, PixelFeatures) {
-        let pixel_index = y as u64 * s.width as u64 + x as u64;
-        let origin = s.camera.origin();
-        let key = pixel_key(s.seed, pixel_index, s.frame);
-        let mut sum = Vec3::ZERO;
-        // sums over the shaded samples: reflected light (radiance minus what the camera ray
-        // sees directly), its luminance and square, the first-hit reflectance luminance and
-        // square, and their product (for the variance of the ratio estimate)
-        let mut reflected = Vec3::ZERO;
-        let mut refl_albedo = Vec3::ZERO;
-        let (mut r1, mut r2, mut a1, mut a2, mut ra) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0.0f64);
-        let mut shaded = 0u32;
-        let mut acc = PixelFeatures {
-            albedo: Vec3::ZERO,
-            normal: Vec3::ZERO,
-            depth: 0.0,
-            variance: 0.0,
-            emission: Vec3::ZERO,
-            irradiance: Vec3::ZERO,
-        };
-        let rays = s.spp.max(feature_spp);
+    ) -> (ShadeSums, FirstHitSums) {
+        let key = pixel_key(s.seed, y as u64 * s.width as u64 + x as u64, s.frame);
         let film_rays = s.camera.film_rays(s.width, s.height);
-        let mut counted = 0u32;
-        for i in 0..s.spp {
+        let mut shade = ShadeSums::default();
+        let mut feats = FirstHitSums::default();
+        self.shade_samples(s, x, y, 0..s.spp, vis, cache, key, &film_rays, &mut shade, Some(&mut feats));
+        // the camera rays that only see the first hit
+        self.first_hit_rays(s, x, y, s.spp..s.spp.max(feature_spp), vis, &film_rays, key, &mut feats);
+        (shade, feats)
+    }
+
+    /// Shade camera samples `samples` of pixel (`x`, `y`) into `shade`, adding their first hits
+    /// to `feats` when given (not for samples whose first hits are already in them: adaptive
+    /// samples shade rays that were first-hit-only rays).
+    #[allow(clippy::too_many_arguments)]
+    fn shade_samples(
+        &self,
+        s: &RenderSettings,
+        x: u32,
+        y: u32,
+        samples: std::ops::Range<u32>,
+        vis: Option<&Visibility>,
+        cache: Option<&RadianceCache>,
+        key: u64,
+        film_rays: &FilmRays,
+        shade: &mut ShadeSums,
+        mut feats: Option<&mut FirstHitSums>,
+    ) {
+        let origin = s.camera.origin();
+        for i in samples {
             let mut rng = SampleStream::new(s.sampler, key, i);
             // the film offset: from the visibility buffer when it holds this sample
             let c = match vis.filter(|v| i < v.samples) {
@@ -352,57 +383,25 @@ impl<'a> Renderer<'a> {
             let spread = self.camera_spread(s, film);
             let hit = self.camera_hit(vis.filter(|v| i < v.samples).map(|v| v.prim(x, y, i)), origin, dir);
             let l = self.li_first(origin, dir, s, &mut rng, &mut first, spread, Some(hit), cache);
-            acc.albedo += first.albedo;
-            acc.normal += first.normal;
-            acc.depth += first.depth;
+            shade.attempted += 1;
+            if let Some(f) = feats.as_deref_mut() {
+                f.albedo += first.albedo;
+                f.normal += first.normal;
+                f.depth += first.depth;
+            }
             // a non-finite sample would poison the pixel: drop it (counts as black)
             if !l.is_finite() {
+                if let Some(f) = feats.as_deref_mut() {
+                    f.dropped += 1;
+                }
                 continue;
             }
-            sum += l;
-            let refl = (l - first.emission).max(Vec3::ZERO);
-            reflected += refl;
-            refl_albedo += first.albedo;
-            let (r, a) = (luminance(refl) as f64, luminance(first.albedo) as f64);
-            (r1, r2, a1, a2, ra) = (r1 + r, r2 + r * r, a1 + a, a2 + a * a, ra + r * a);
-            shaded += 1;
-            acc.emission += first.emission;
-            counted += 1;
+            shade.add(l, &first);
+            if let Some(f) = feats.as_deref_mut() {
+                f.emission += first.emission;
+                f.rays += 1;
+            }
         }
-        // the camera rays that only see the first hit
-        let mut sums = FirstHitSums {
-            albedo: acc.albedo,
-            normal: acc.normal,
-            depth: acc.depth,
-            emission: acc.emission,
-            rays: counted,
-        };
-        self.first_hit_rays(s, x, y, s.spp..rays, vis, &film_rays, key, &mut sums);
-        (acc.albedo, acc.normal, acc.depth, acc.emission, counted) =
-            (sums.albedo, sums.normal, sums.depth, sums.emission, sums.rays);
-        let n = s.spp.max(1) as f32;
-        let rays = rays.max(1) as f32;
-        let albedo = acc.albedo / rays;
-        // reflected light per unit reflectance: a ratio over the same samples, so that texture
-        // detail inside the pixel (which samples happened to land on) cancels out
-        let irradiance = reflected / refl_albedo.max(Vec3::splat(MIN_REFLECTANCE));
-        // variance of the pixel's reflected light `albedo * irradiance`: the ratio estimate's
-        // (delta method) variance, scaled by the reflectance luminance
-        let m = shaded.max(1) as f64;
-        let e = luminance(irradiance) as f64;
-        let resid2 = (r2 - 2.0 * e * ra + e * e * a2).max(0.0);
-        let a_mean = (a1 / m).max(MIN_REFLECTANCE as f64);
-        let la = luminance(albedo) as f64;
-        let variance = if shaded > 1 { (resid2 / (m - 1.0) / m / (a_mean * a_mean) * la * la) as f32 } else { 0.0 };
-        let features = PixelFeatures {
-            albedo,
-            normal: acc.normal.try_normalize().unwrap_or(Vec3::Z),
-            depth: acc.depth / rays,
-            variance,
-            emission: acc.emission / counted.max(1) as f32,
-            irradiance,
-        };
-        (sum / n, features)
     }
 
     /// Directions of the camera rays through film points `texture_filter` pixels right of and
@@ -735,6 +734,116 @@ struct PixelFeatures {
     irradiance: Vec3,
 }
 
+/// Running sums over one pixel's shaded samples: radiance, reflected light (radiance minus
+/// what the camera ray sees directly), the first-hit reflectance of the same samples, and the
+/// moments of their luminances (for the variance of the ratio estimate).
+#[derive(Clone, Copy, Debug, Default)]
+struct ShadeSums {
+    sum: Vec3,
+    reflected: Vec3,
+    refl_albedo: Vec3,
+    r1: f64,
+    r2: f64,
+    a1: f64,
+    a2: f64,
+    ra: f64,
+    /// Samples with a finite value.
+    shaded: u32,
+    /// Samples shot (the image is their mean; non-finite ones count as black).
+    attempted: u32,
+}
+
+impl ShadeSums {
+    /// Add a finite sample `l` whose camera ray hit `first`.
+    #[inline]
+    fn add(&mut self, l: Vec3, first: &FirstHit) {
+        self.sum += l;
+        let refl = (l - first.emission).max(Vec3::ZERO);
+        self.reflected += refl;
+        self.refl_albedo += first.albedo;
+        let (r, a) = (luminance(refl) as f64, luminance(first.albedo) as f64);
+        (self.r1, self.r2, self.a1, self.a2, self.ra) =
+            (self.r1 + r, self.r2 + r * r, self.a1 + a, self.a2 + a * a, self.ra + r * a);
+        self.shaded += 1;
+    }
+
+    /// The reflected light per unit reflectance (luminance) and the variance of one sample's
+    /// estimate of it: the ratio estimate's residual variance over the squared mean reflectance
+    /// (delta method); None below 2 samples.
+    fn ratio_and_sample_variance(&self) -> Option<(f64, f64)> {
+        let m = self.shaded as f64;
+        if self.shaded < 2 {
+            return None;
+        }
+        let e = self.r1 / self.a1.max(MIN_REFLECTANCE as f64 * m);
+        let resid2 = (self.r2 - 2.0 * e * self.ra + e * e * self.a2).max(0.0);
+        let a_mean = (self.a1 / m).max(MIN_REFLECTANCE as f64);
+        Some((e, resid2 / (m - 1.0) / (a_mean * a_mean)))
+    }
+}
+
+/// Adaptive sampling: the shaded samples each pixel gets in all (`spp..=spp_max`), from the
+/// first `spp`: enough for the relative variance of its reflected light's estimate to reach
+/// `adaptive_target`, judged by the per-sample relative variance averaged over the pixel's
+/// 3x3 neighbourhood (a few samples per pixel are too few to judge one pixel by).
+fn adaptive_spp(sums: &[(ShadeSums, FirstHitSums)], w: u32, h: u32, s: &RenderSettings) -> Vec<u32> {
+    let rel: Vec<f32> = sums
+        .par_iter()
+        .map(|(shade, _)| match shade.ratio_and_sample_variance() {
+            Some((e, v)) if e > 0.0 => (v / (e * e)) as f32,
+            _ => 0.0,
+        })
+        .collect();
+    let (w, h) = (w as usize, h as usize);
+    let t = s.adaptive_variance;
+    (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (mut sum, mut n) = (0.0f32, 0u32);
+            for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                    sum += rel[yy * w + xx];
+                    n += 1;
+                }
+            }
+            let want = (sum / n as f32 / t).ceil();
+            if want.is_finite() {
+                (want as u32).clamp(s.spp, s.spp_max)
+            } else {
+                s.spp_max
+            }
+        })
+        .collect()
+}
+
+/// A pixel's colour and features from its sums (see [`Renderer::pixel_sums`]).
+fn finish_pixel(shade: &ShadeSums, feats: &FirstHitSums) -> (Vec3, PixelFeatures) {
+    let n = shade.attempted.max(1) as f32;
+    let rays = (feats.rays + feats.dropped).max(1) as f32;
+    let albedo = feats.albedo / rays;
+    // reflected light per unit reflectance: a ratio over the same samples, so that texture
+    // detail inside the pixel (which samples happened to land on) cancels out
+    let irradiance = shade.reflected / shade.refl_albedo.max(Vec3::splat(MIN_REFLECTANCE));
+    // variance of the pixel's reflected light `albedo * irradiance`: the ratio estimate's
+    // (delta method) variance, scaled by the reflectance luminance
+    let m = shade.shaded.max(1) as f64;
+    let e = luminance(irradiance) as f64;
+    let resid2 = (shade.r2 - 2.0 * e * shade.ra + e * e * shade.a2).max(0.0);
+    let a_mean = (shade.a1 / m).max(MIN_REFLECTANCE as f64);
+    let la = luminance(albedo) as f64;
+    let variance = if shade.shaded > 1 { (resid2 / (m - 1.0) / m / (a_mean * a_mean) * la * la) as f32 } else { 0.0 };
+    let features = PixelFeatures {
+        albedo,
+        normal: feats.normal.try_normalize().unwrap_or(Vec3::Z),
+        depth: feats.depth / rays,
+        variance,
+        emission: feats.emission / feats.rays.max(1) as f32,
+        irradiance,
+    };
+    (shade.sum / n, features)
+}
+
 /// Salt of the radiance cache's random streams (keeps them apart from the camera samples').
 const CACHE_SALT: u64 = 0x7ac4_e5c0_ffee_d00d;
 
@@ -766,6 +875,9 @@ pub struct Features {
     /// smooth this and multiply it back by `albedo`; texture detail within a pixel does not
     /// enter it.
     pub irradiance: Vec<Vec3>,
+    /// Shaded samples of the render, all pixels together (with adaptive sampling, more than
+    /// `spp` per pixel; 0 where unknown).
+    pub samples: u64,
 }
 
 impl Features {
@@ -781,6 +893,7 @@ impl Features {
             variance: vec![0.0; n],
             emission: vec![Vec3::ZERO; n],
             irradiance: vec![Vec3::ZERO; n],
+            samples: 0,
         }
     }
 

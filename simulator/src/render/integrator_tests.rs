@@ -423,13 +423,7 @@ fn first_hit_rays_from_the_buffer_agree_with_traced_ones() {
         for y in 0..st.height {
             for x in 0..st.width {
                 let key = pixel_key(st.seed, (y * st.width + x) as u64, st.frame);
-                let zero = || first_hits::FirstHitSums {
-                    albedo: Vec3::ZERO,
-                    normal: Vec3::ZERO,
-                    depth: 0.0,
-                    emission: Vec3::ZERO,
-                    rays: 0,
-                };
+                let zero = first_hits::FirstHitSums::default;
                 let (mut fast, mut traced) = (zero(), zero());
                 r.first_hit_rays(&st, x, y, 0..rays, Some(&vis), &film_rays, key, &mut fast);
                 // the same rays, each traced through the BVH
@@ -469,4 +463,45 @@ fn first_hit_rays_from_the_buffer_agree_with_traced_ones() {
         // only pixels with a ray within float error of an edge may differ
         assert!(close * 1000 >= n * 990, "{close} of {n} pixels agree");
     }
+}
+
+#[test]
+fn adaptive_sampling_adds_samples_where_the_estimate_is_noisy() {
+    let (scene, st) = lit_room();
+    let r = Renderer::new(&scene);
+    let base = RenderSettings { spp: 2, feature_spp: 16, ..st };
+    let adaptive = RenderSettings { spp_max: 12, adaptive_variance: 0.05, ..base.clone() };
+    let (img, f) = r.render_with_features(&adaptive);
+    // the first-hit buffers do not change: the extra samples shade rays that were first-hit rays
+    let (_, f_base) = r.render_with_features(&base);
+    assert_eq!(
+        (&f.albedo, &f.normal, &f.depth, &f.emission),
+        (&f_base.albedo, &f_base.normal, &f_base.depth, &f_base.emission)
+    );
+    // every pixel is what `n` samples everywhere give it, for its own n in 2..=12
+    let uniform: Vec<Image> =
+        (2..=12).map(|spp| r.render_with_features(&RenderSettings { spp, ..base.clone() }).0).collect();
+    let counts: Vec<u32> = (0..img.pixels.len())
+        .map(|i| {
+            let n = uniform.iter().position(|u| u.pixels[i] == img.pixels[i]);
+            n.unwrap_or_else(|| panic!("pixel {i} matches no uniform sample count")) as u32 + 2
+        })
+        .collect();
+    assert!(counts.contains(&2) && counts.iter().any(|&n| n > 6), "counts {counts:?}");
+    // the pixels given more samples are those whose first 2 were further from the converged
+    // image (in log luminance, what events see)
+    let reference = r.render_with_features(&RenderSettings { spp: 1024, ..base.clone() }).0;
+    let log_err = |i: usize| {
+        let l = |c: Vec3| (luminance(c) as f64 + 1e-3).ln();
+        (l(uniform[0].pixels[i]) - l(reference.pixels[i])).abs()
+    };
+    let mean_err = |boosted: bool| {
+        let e: Vec<f64> = (0..counts.len()).filter(|&i| (counts[i] > 2) == boosted).map(log_err).collect();
+        e.iter().sum::<f64>() / e.len() as f64
+    };
+    let (err_boosted, err_rest) = (mean_err(true), mean_err(false));
+    assert!(err_boosted > 1.2 * err_rest, "2-sample log error {err_boosted} (boosted pixels) vs {err_rest} (the rest)");
+    // the same bytes whatever the thread count
+    let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+    assert_eq!(pool(1).install(|| r.render_with_features(&adaptive)), (img, f));
 }

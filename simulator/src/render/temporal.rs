@@ -163,6 +163,7 @@ impl SequenceFrame {
             emission: self.emission.iter().map(|&h| from_half3(h)).collect(),
             variance,
             albedo,
+            samples: 0,
         }
     }
 

@@ -147,7 +147,7 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
     };
     anyhow::ensure!(start + b.frames < n, "the segment ends after the sequence's {n} frames");
     println!(
-        "frames bench: {} frames {}..={} of {} ({}x{}, {} spp, {} feature rays, radius {}, cache {}), {} threads",
+        "frames bench: {} frames {}..={} of {} ({}x{}, {} spp{}, {} feature rays, radius {}, cache {}), {} threads",
         b.scene.display(),
         start,
         start + b.frames,
@@ -155,6 +155,11 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
         c.width,
         c.height,
         c.spp,
+        if c.spp_max > c.spp {
+            format!(" (adaptive up to {}, target {})", c.spp_max, c.adaptive_variance)
+        } else {
+            String::new()
+        },
         c.feature_spp,
         if c.denoise { c.temporal_radius } else { 0 },
         c.radiance_cache,
@@ -190,6 +195,10 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
     println!("  per frame (median of {}):", rows.len());
     for (i, name) in ["raster", "shading", "temporal window", "spatial filter", "frame"].iter().enumerate() {
         println!("    {:<16} {:7.3} s", name, col(i));
+    }
+    if c.spp_max > c.spp {
+        let px = (seq.renders * (c.width * c.height) as usize) as f64;
+        println!("  adaptive sampling: {:.2} samples per pixel on average", seq.samples as f64 / px);
     }
     println!("  {n} frames at this rate: {:.1} min", col(4) * n as f64 / 60.0);
     Ok(())

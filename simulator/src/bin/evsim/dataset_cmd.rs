@@ -56,6 +56,13 @@ pub struct OverrideArgs {
     /// Override [dataset] sharp_spp: samples per pixel of the sharp renders.
     #[arg(long)]
     pub sharp_spp: Option<u32>,
+    /// Override [dataset] spp_max: adaptive sampling, the most samples a noisy pixel gets
+    /// (0 = off).
+    #[arg(long)]
+    pub spp_max: Option<u32>,
+    /// Override [dataset] adaptive_variance: the relative variance adaptive sampling aims at.
+    #[arg(long)]
+    pub adaptive_variance: Option<f64>,
     /// Override [dataset] views: number of images.
     #[arg(long)]
     pub views: Option<u32>,
@@ -117,6 +124,8 @@ impl OverrideArgs {
             width: self.width,
             height: self.height,
             spp: self.spp,
+            spp_max: self.spp_max,
+            adaptive_variance: self.adaptive_variance,
             sharp_spp: self.sharp_spp,
             views: self.views,
             seed: self.seed,
@@ -276,7 +285,7 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         args.pool
     );
     println!(
-        "{}: {} frames {}x{}, {:?} noise pattern, threshold {}, {}: {} spp vs a {} spp reference",
+        "{}: {} frames {}x{}, {:?} noise pattern, threshold {}, {}: {} spp{} vs a {} spp reference",
         args.scene.display(),
         r.frames,
         r.width,
@@ -291,6 +300,11 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
             "denoised (spatial only)".to_string()
         },
         r.spp,
+        if plan.config.spp_max > r.spp {
+            format!(" (adaptive up to {}, target {})", plan.config.spp_max, plan.config.adaptive_variance)
+        } else {
+            String::new()
+        },
         r.ref_spp
     );
     let line = |what: &str, c: &simulator::dataset::noise::Comparison| {
@@ -313,7 +327,7 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
     println!(
         "render time (filters included): {:.2} s per frame at {} spp, {:.2} s per frame at {} spp{}",
         r.test_time.as_secs_f64() / r.renders as f64,
-        r.spp,
+        if plan.config.spp_max > r.spp { format!("{:.2}", r.mean_spp) } else { r.spp.to_string() },
         r.ref_time.as_secs_f64() / r.renders as f64,
         r.ref_spp,
         if r.renders > r.frames {

@@ -102,6 +102,9 @@ struct RenderIdentity<'a> {
     /// Only written when on, as `texture_filter_bits`.
     #[serde(skip_serializing_if = "is_zero")]
     radiance_cache: u32,
+    /// Only written when not the default 2 (with the cache on), as `texture_filter_bits`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cache_vertex: Option<u32>,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -260,6 +263,7 @@ impl Plan {
                 feature_spp: if config.denoise && config.feature_spp > config.spp { config.feature_spp } else { 0 },
                 texture_filter_bits: config.texture_filter.to_bits(),
                 radiance_cache: config.radiance_cache,
+                cache_vertex: (config.radiance_cache > 0 && config.cache_vertex != 2).then_some(config.cache_vertex),
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })
@@ -356,6 +360,12 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
         return bad(
             "dataset.radiance_cache",
             format!("{} must be at most 1024 paths per cache point (0 turns the cache off)", d.radiance_cache),
+        );
+    }
+    if !(1..=2).contains(&d.cache_vertex) {
+        return bad(
+            "dataset.cache_vertex",
+            format!("{} must be 1 or 2 (the camera-path vertex the radiance cache serves)", d.cache_vertex),
         );
     }
     if d.spp_max > 4096 {

@@ -10,7 +10,7 @@
 //! exposure_ms = 40.0       # shutter time of the blurry views (ms)
 //! views = 30               # images in images_1/
 //! sharp_every = 8          # views 0, 8, 16, ... are sharp test views (llffhold = 8)
-//! spp = 6                  # samples per pixel of every 1000 FPS frame
+//! spp = 2                  # samples per pixel of every 1000 FPS frame
 //! spp_max = 0              # adaptive sampling: noisy pixels get up to this many (0 = off)
 //! adaptive_variance = 0.1  # with spp_max: the relative variance a pixel's estimate aims at
 //! # sharp_spp = 32         # render the sharp images separately at this spp (default: they
@@ -22,6 +22,7 @@
 //! texture_filter = 0.0     # camera rays filter textures over this many pixels (0 = off)
 //! radiance_cache = 32      # paths per point of the radiance cache ending paths at the
 //!                          # second bounce (0 = off: full paths)
+//! cache_vertex = 1         # the path vertex the cache serves: 1 (shadow rays only) or 2
 //! response = { type = "gamma", gamma = 2.2 }
 //! ```
 //!
@@ -72,9 +73,10 @@ pub struct DatasetConfig {
     /// `first_view_ms` to the same margin before the trajectory's end. Rounded to whole frames.
     pub spacing_ms: Option<f64>,
     /// Samples per pixel of every rendered frame (>= 1; with adaptive sampling, `spp_max`, the
-    /// fewest a pixel gets). The default 6, with `feature_spp` 32, `temporal_radius` 32 and
-    /// `radiance_cache` 32, keeps noise-induced events below 5% in `evsim dataset-noise`
-    /// (factory: 4.70%; 4 spp: 5.26%).
+    /// fewest a pixel gets). The default 2, with `feature_spp` 32, `temporal_radius` 32 and
+    /// `radiance_cache` 32 at `cache_vertex` 1, keeps noise-induced events below 5% in
+    /// `evsim dataset-noise` (factory: 4.08% against the 32-spp reference). With the cache at
+    /// the second vertex it took 6 (4.70%; 4 spp: 5.26%).
     pub spp: u32,
     /// Adaptive sampling (0 or at most `spp` = off; with `denoise`, the default): every pixel of
     /// a sequence frame first takes `spp` samples; pixels whose estimate is still noisy then take more, up to
@@ -155,6 +157,19 @@ pub struct DatasetConfig {
     /// approximate: surfaces beyond the first bounce count as diffuse (factory, 64 spp: mean 1%
     /// darker than full paths).
     pub radiance_cache: u32,
+    /// With `radiance_cache`: the camera-path vertex the cache serves, 1 (default) or 2. At 1 a
+    /// camera sample on a mostly diffuse surface traces only the shadow rays of its direct light
+    /// from delta lights and emissive triangles; the environment and the light arriving via
+    /// other surfaces come from a cache of indirect light at the first vertex
+    /// ([`crate::render::radiance_cache`]); glossy and metal surfaces keep their bounce ray. At
+    /// 2 every camera sample also traces a bounce ray, whose second vertex reads the cache.
+    /// Measured on `scenes/factory` (`evsim dataset-noise` at 300x200, radius 16, 10 frames,
+    /// against one 96-spp reference each): 6 spp fire 9.76% noise-induced events at 2, and
+    /// 3 spp 9.98% at 1; `evsim bench frames`, side by side: shading 1.31 s per frame at 2 and
+    /// 6 spp, 0.77 s at 1 and 3 spp, 0.65 s at 1 and 2 spp. The price: the indirect light is
+    /// blurred to the lattice's spacing and mostly diffuse surfaces lose their glossy reflections
+    /// of other surfaces (factory, 256 spp, against full paths: 33.9 dB PSNR, 36.6 dB at 2).
+    pub cache_vertex: u32,
 }
 
 impl Default for DatasetConfig {
@@ -168,7 +183,7 @@ impl Default for DatasetConfig {
             sharp_every: 8,
             first_view_ms: None,
             spacing_ms: None,
-            spp: 6,
+            spp: 2,
             spp_max: 0,
             adaptive_variance: 0.1,
             sharp_spp: None,
@@ -186,6 +201,7 @@ impl Default for DatasetConfig {
             feature_spp: 32,
             texture_filter: 0.0,
             radiance_cache: 32,
+            cache_vertex: 1,
         }
     }
 }
@@ -233,6 +249,8 @@ pub struct Overrides {
     pub texture_filter: Option<f32>,
     /// `[dataset] radiance_cache`: paths per radiance-cache point (count; 0 = off).
     pub radiance_cache: Option<u32>,
+    /// `[dataset] cache_vertex`: the camera-path vertex the radiance cache serves (1 or 2).
+    pub cache_vertex: Option<u32>,
     /// `[events.noise.threshold_mismatch] sigma`: per-pixel threshold spread (log units; 0 = off).
     pub threshold_sigma: Option<f32>,
     /// `[events.noise] leak_rate_hz`: leak events per pixel per second (Hz).
@@ -274,6 +292,7 @@ impl Overrides {
             feature_spp: over.feature_spp.or(self.feature_spp),
             texture_filter: over.texture_filter.or(self.texture_filter),
             radiance_cache: over.radiance_cache.or(self.radiance_cache),
+            cache_vertex: over.cache_vertex.or(self.cache_vertex),
             threshold_sigma: over.threshold_sigma.or(self.threshold_sigma),
             leak_rate_hz: over.leak_rate_hz.or(self.leak_rate_hz),
             shot_noise_rate_hz: over.shot_noise_rate_hz.or(self.shot_noise_rate_hz),
@@ -335,6 +354,7 @@ impl Overrides {
         d.feature_spp = self.feature_spp.unwrap_or(d.feature_spp);
         d.texture_filter = self.texture_filter.unwrap_or(d.texture_filter);
         d.radiance_cache = self.radiance_cache.unwrap_or(d.radiance_cache);
+        d.cache_vertex = self.cache_vertex.unwrap_or(d.cache_vertex);
         let noise = &mut ev.noise;
         if let Some(sigma) = self.threshold_sigma {
             let mode = noise.threshold_mismatch.map(|m| m.mode).unwrap_or_default();

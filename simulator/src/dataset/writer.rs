@@ -166,6 +166,7 @@ pub fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> Rende
     s.feature_spp = c.feature_spp;
     s.texture_filter = c.texture_filter;
     s.radiance_cache = c.radiance_cache;
+    s.cache_vertex = c.cache_vertex;
     if sharp {
         s.spp = plan.sharp_spp.unwrap_or(c.spp);
         // sharp renders draw from their own streams (far from any sequence frame index)

@@ -58,7 +58,7 @@
 //!
 //! # Sampling
 //!
-//! One lobe is picked per sample with probability `p_spec`, a function of `wo` only:
+//! One lobe is picked per sample with probability `p_spec` ([`Bsdf::specular_share`]), a function of `wo` only:
 //! `p_spec = lum(F(wo.z)) / (lum(F(wo.z)) + (1 - metallic) lum(base) (1 - s F_d(wo.z)))`
 //! (Rec. 709 luminance). It is exactly 0 when the specular lobe vanishes (`s = 0, metallic = 0`)
 //! and exactly 1 when the diffuse lobe does (`metallic = 1` or black base colour).
@@ -211,8 +211,10 @@ impl Bsdf {
         }
     }
 
-    /// Probability of sampling the specular lobe, from `wo` only (see the module doc).
-    fn p_spec(&self, wo: Vec3) -> f32 {
+    /// Probability of sampling the specular lobe, from `wo` (local frame) only (see the module
+    /// doc): the specular lobe's share of the reflected light by luminance (Fresnel reflectance
+    /// against diffuse albedo at `wo`'s angle): 0 for a Lambertian surface, 1 for a metal.
+    pub fn specular_share(&self, wo: Vec3) -> f32 {
         if !self.has_specular() {
             return 0.0;
         }
@@ -236,7 +238,7 @@ impl Bsdf {
         if wo.z <= 0.0 || wi.z <= 0.0 || wo.z.is_nan() || wi.z.is_nan() || !h.is_finite() {
             return (Vec3::ZERO, 0.0);
         }
-        let p_spec = self.p_spec(wo);
+        let p_spec = self.specular_share(wo);
         // the angle in the Fresnel terms: v.h (= wi.h by construction of h)
         let c = wo.dot(h).clamp(0.0, 1.0);
         // diffuse lobe: (1 - m)(1 - s F_d) base / pi * cos(theta_i), cosine-hemisphere density
@@ -298,7 +300,7 @@ impl Bsdf {
         if !(wo.z > 0.0) || !wo.is_finite() {
             return None;
         }
-        let (wi, h) = if u_lobe < self.p_spec(wo) {
+        let (wi, h) = if u_lobe < self.specular_share(wo) {
             // specular lobe: a visible normal, mirrored
             let m = self.sample_visible_normal(wo, u)?;
             (2.0 * wo.dot(m) * m - wo, m)
@@ -673,10 +675,10 @@ mod tests {
         assert!((b.fresnel(1.0) - base).abs().max_element() < 1e-6);
         assert!((b.fresnel(0.0) - Vec3::ONE).abs().max_element() < 1e-6);
         // lobe selection: exactly 0 / 1 when a lobe vanishes
-        assert_eq!(Bsdf::new(base, 0.0, 0.0, 0.5).p_spec(wo_at(85.0)), 0.0);
-        assert_eq!(Bsdf::new(base, 1.0, 1.0, 0.5).p_spec(wo_at(0.0)), 1.0);
-        assert_eq!(Bsdf::new(Vec3::ZERO, 0.0, 1.0, 0.5).p_spec(wo_at(30.0)), 1.0);
-        let p = Bsdf::new(base, 0.0, 1.0, 0.5).p_spec(wo_at(30.0));
+        assert_eq!(Bsdf::new(base, 0.0, 0.0, 0.5).specular_share(wo_at(85.0)), 0.0);
+        assert_eq!(Bsdf::new(base, 1.0, 1.0, 0.5).specular_share(wo_at(0.0)), 1.0);
+        assert_eq!(Bsdf::new(Vec3::ZERO, 0.0, 1.0, 0.5).specular_share(wo_at(30.0)), 1.0);
+        let p = Bsdf::new(base, 0.0, 1.0, 0.5).specular_share(wo_at(30.0));
         assert!(p > 0.0 && p < 0.2, "{p}");
     }
 

@@ -75,6 +75,12 @@ pub struct RenderSettings {
     /// Lattice spacing of the radiance cache (world units; 0 = the scene's bounding-box
     /// diagonal over 128).
     pub cache_spacing: f32,
+    /// The camera-path vertex the radiance cache serves: 2 (the default) ends paths at their
+    /// second surface vertex with the cached light there; 1 ends them at the first: a camera
+    /// sample then traces only the shadow rays of its direct light from delta lights and
+    /// emissive triangles, and the rest (the environment, light via other surfaces) comes from
+    /// a cache of indirect light (see [`super::radiance_cache`]).
+    pub cache_vertex: u32,
     /// Adaptive sampling in [`super::integrator::Renderer::shade_with_features`]: pixels whose
     /// first `spp` samples show a noisy estimate get up to this many in all; at most `spp`
     /// (the default 0) = off.
@@ -104,6 +110,7 @@ impl RenderSettings {
             texture_filter: 0.0,
             radiance_cache: 0,
             cache_spacing: 0.0,
+            cache_vertex: 2,
             spp_max: 0,
             adaptive_variance: 0.1,
         }

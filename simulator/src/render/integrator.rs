@@ -260,6 +260,7 @@ impl<'a> Renderer<'a> {
             rr_depth: s.rr_depth.saturating_sub(1).max(1),
             clamp: s.clamp,
             light_samples: s.light_samples,
+            first: s.cache_vertex == 1,
         };
         let mut slot = self.cache.lock().unwrap_or_else(|e| e.into_inner());
         match &*slot {
@@ -275,6 +276,14 @@ impl<'a> Renderer<'a> {
     /// Compute the lattice of triangle `prim`'s `front` (or back) side for `cache` (see
     /// [`crate::render::radiance_cache`]).
     fn fill_lattice(&self, cache: &RadianceCache, prim: u32, front: bool) -> Lattice {
+        self.fill(cache, prim, front, false)
+    }
+
+    /// Compute triangle `prim`'s `front` (or back) side's lattice of `cache`: the second-vertex
+    /// lattice, or with `indirect` the first-vertex one ([`RadianceCache::indirect_lattice`]:
+    /// its paths are a camera path's, ending at their second vertex in the second-vertex
+    /// lattice).
+    fn fill(&self, cache: &RadianceCache, prim: u32, front: bool, indirect: bool) -> Lattice {
         let p = cache.params;
         let [a, b, c] = self.scene.mesh.corners(prim as usize);
         let (e1, e2) = (b - a, c - a);
@@ -286,11 +295,13 @@ impl<'a> Renderer<'a> {
         };
         let n = if front { ng } else { -ng };
         let mut s = RenderSettings::new(crate::scene::Camera::look_at(Vec3::ZERO, -Vec3::Z, Vec3::Y, 1.0));
-        s.max_depth = p.max_depth;
-        s.rr_depth = p.rr_depth;
+        // the first-vertex lattice's paths are one segment longer: a camera path's
+        s.max_depth = p.max_depth + u32::from(indirect);
+        s.rr_depth = p.rr_depth + u32::from(indirect);
         s.clamp = p.clamp;
         s.light_samples = p.light_samples;
-        let side = prim as u64 * 2 + u64::from(!front);
+        let side = prim as u64 * 2 + u64::from(!front) + if indirect { 1 << 40 } else { 0 };
+        let (mode, path_cache) = if indirect { (PathMode::IndirectFill, Some(cache)) } else { (PathMode::Full, None) };
         for j in 0..=steps {
             for i in 0..=steps - j {
                 let k = lattice_index(steps, i, j);
@@ -306,7 +317,8 @@ impl<'a> Renderer<'a> {
                 for path in 0..p.paths {
                     let mut rng = SampleStream::new(p.sampler, key, path);
                     let mut first = FirstHit::new(n);
-                    let l = self.li_first(origin, dir, &s, &mut rng, &mut first, None, Some(Some(hit)), None);
+                    let l =
+                        self.li_first(origin, dir, &s, &mut rng, &mut first, None, Some(Some(hit)), path_cache, mode);
                     if l.is_finite() {
                         refl += (l - first.emission).max(Vec3::ZERO);
                         albedo += first.albedo;
@@ -382,7 +394,8 @@ impl<'a> Renderer<'a> {
             let mut first = FirstHit::new(-dir);
             let spread = self.camera_spread(s, film);
             let hit = self.camera_hit(vis.filter(|v| i < v.samples).map(|v| v.prim(x, y, i)), origin, dir);
-            let l = self.li_first(origin, dir, s, &mut rng, &mut first, spread, Some(hit), cache);
+            let l =
+                self.li_first(origin, dir, s, &mut rng, &mut first, spread, Some(hit), cache, PathMode::camera(cache));
             shade.attempted += 1;
             if let Some(f) = feats.as_deref_mut() {
                 f.albedo += first.albedo;
@@ -549,14 +562,15 @@ impl<'a> Renderer<'a> {
     /// Radiance arriving at `origin` from direction `dir` (one path sample).
     pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
         let mut first = FirstHit::new(-dir);
-        self.li_first(origin, dir, s, rng, &mut first, None, None, None)
+        self.li_first(origin, dir, s, rng, &mut first, None, None, None, PathMode::Full)
     }
 
     /// [`Renderer::li`], also recording the camera ray's hit in `first` (left as it is when the
     /// ray escapes); with `spread` (see [`Renderer::camera_spread`]) the first hit's textures are
     /// filtered over the ray's footprint; with `camera_hit`, that is the first hit (else it is
     /// traced); with `cache`, the path ends at its second surface vertex with the cached
-    /// reflected light there ([`crate::render::radiance_cache`]).
+    /// reflected light there ([`crate::render::radiance_cache`]), or as `mode` says (see
+    /// [`PathMode`]).
     #[allow(clippy::too_many_arguments)]
     fn li_first(
         &self,
@@ -568,6 +582,7 @@ impl<'a> Renderer<'a> {
         spread: Option<[Vec3; 2]>,
         camera_hit: Option<Option<Hit>>,
         cache: Option<&RadianceCache>,
+        mode: PathMode,
     ) -> Vec3 {
         let scene = self.scene;
         let mut l = Vec3::ZERO;
@@ -619,6 +634,11 @@ impl<'a> Renderer<'a> {
             if le != Vec3::ZERO {
                 let w = match prev_bsdf_pdf {
                     None => 1.0,
+                    // the first-vertex cache's paths: weighed against the camera samples' light
+                    // samples, which pick emissive triangles alone
+                    Some(pb) if mode == PathMode::IndirectFill && depth == 2 => {
+                        power_heuristic(pb, n_ls * self.lights.pdf_triangle_bounded(hit.prim, prev_p, sh.p, sh.ng))
+                    }
                     Some(pb) => power_heuristic(pb, n_ls * self.lights.pdf_triangle(hit.prim, prev_p, sh.p, sh.ng)),
                 };
                 l += clamp_after_camera(beta * le * w, depth, s.clamp);
@@ -652,13 +672,25 @@ impl<'a> Renderer<'a> {
             // power (the first from `a`, further ones from fresh numbers after `b`, so that one
             // light sample consumes exactly the numbers it always did)
             // (drawn lazily, in order, without a heap allocation per vertex)
-            let first_sample = self.lights.sample(scene, sh.p, u_sel, u_light);
+            // a first-vertex cache ends the path here where the surface is mostly diffuse:
+            // emissive triangles alone are sampled (the environment is in the cache), weighed
+            // against the BSDF samples of the cache's paths, which add what these leave out
+            // (near an emitter: most of it)
+            let end_cache = cache.filter(|_| mode == PathMode::Camera && depth == 1 && bsdf.specular_share(wo) < 0.5);
+            // the first-vertex cache's paths: no delta light nor emitter at the first vertex
+            let skip_direct = mode == PathMode::IndirectFill && depth == 1;
+            let sample_light = |u_sel: f32, u: Vec2| match end_cache {
+                Some(_) => self.lights.sample_bounded(scene, sh.p, u_sel, u),
+                None => self.lights.sample(scene, sh.p, u_sel, u),
+            };
+            let first_sample = sample_light(u_sel, u_light);
             let more_samples = (1..s.light_samples.max(1)).map(|_| {
                 let c = rng.next_4d();
-                self.lights.sample(scene, sh.p, c[2], Vec2::new(c[0], c[1]))
+                sample_light(c[2], Vec2::new(c[0], c[1]))
             });
             let sampled = std::iter::once(first_sample).chain(more_samples).flatten();
-            for ls in self.lights.delta_incident(scene, sh.p).chain(sampled) {
+            let delta = self.lights.delta_incident(scene, sh.p).filter(|_| !skip_direct);
+            for ls in delta.chain(sampled.filter(|ls| !(skip_direct && ls.dist.is_finite()))) {
                 let wi_local = sh.frame.to_local(ls.wi);
                 if ls.wi.dot(ng_side) > 0.0 {
                     let (f, bsdf_pdf) = bsdf.eval_and_pdf(wo, wi_local);
@@ -666,11 +698,18 @@ impl<'a> Renderer<'a> {
                         let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) - 1e-4 } else { f32::INFINITY };
                         if !self.accel.occluded(p_off, ls.wi, 0.0, tmax) {
                             // delta lights: once, no MIS; sampled lights: 1/N each, MIS with N
+                            // (where the path ends here, the BSDF samples are the cache's)
                             let w = if ls.is_delta { 1.0 } else { power_heuristic(n_ls * ls.pdf, bsdf_pdf) / n_ls };
                             l += clamp_after_camera(beta * f * ls.radiance * (w / ls.pdf), depth + 1, s.clamp);
                         }
                     }
                 }
+            }
+
+            if let Some(cache) = end_cache {
+                let lattice = cache.indirect_lattice(hit.prim, sh.front, || self.fill(cache, hit.prim, sh.front, true));
+                l += clamp_after_camera(beta * bsdf.albedo_hint() * lattice.at(hit.bary), depth + 1, s.clamp);
+                break;
             }
 
             // continue the path along a BSDF sample
@@ -701,6 +740,31 @@ impl<'a> Renderer<'a> {
     }
 }
 
+/// What a path computes ([`Renderer::li_path`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum PathMode {
+    /// Everything: a full path, or with a cache, one ending at its second vertex.
+    Full,
+    /// A camera path with a first-vertex cache ([`CacheParams::first`]): where the first
+    /// surface is mostly diffuse, the path ends there with its direct light from delta lights
+    /// and emissive triangles plus the cached indirect light times the reflectance hint.
+    Camera,
+    /// A path of the first-vertex cache: without the direct light of delta lights and emissive
+    /// triangles at its first vertex (the camera samples add those).
+    IndirectFill,
+}
+
+impl PathMode {
+    /// The mode of a camera path with `cache`.
+    fn camera(cache: Option<&RadianceCache>) -> PathMode {
+        if cache.is_some_and(|c| c.params.first) {
+            PathMode::Camera
+        } else {
+            PathMode::Full
+        }
+    }
+}
+
 /// Depth recorded for camera rays that escape (far beyond any scene; world units).
 pub const MISS_DEPTH: f32 = 1e6;
 
@@ -725,6 +789,7 @@ impl FirstHit {
 }
 
 /// One pixel's features: the means over its samples.
+#[derive(Debug)]
 struct PixelFeatures {
     albedo: Vec3,
     normal: Vec3,

@@ -62,6 +62,8 @@ pub struct Lights {
     /// Area of each emissive triangle, by table entry (0 for other entries).
     area: Vec<f32>,
     env_entry: Option<u32>,
+    /// The emissive triangles alone, chosen by power ([`Lights::sample_bounded`]).
+    bounded: Distribution1D,
     /// Centre and radius of the scene's bounding sphere.
     pub bounds: (Vec3, f32),
 }
@@ -152,6 +154,9 @@ impl Lights {
             infinite.push(true);
             area.push(0.0);
         }
+        let bounded = Distribution1D::new(
+            &power.iter().zip(&infinite).map(|(&p, &inf)| if inf { 0.0 } else { p }).collect::<Vec<_>>(),
+        );
         // equal shares for each infinite light and for the bounded group; power within the group
         let bounded_total: f32 =
             power.iter().zip(&infinite).filter(|(p, &inf)| !inf && **p > 0.0).map(|(p, _)| *p).sum();
@@ -167,7 +172,7 @@ impl Lights {
             })
             .collect();
         let distribution = Distribution1D::new(&power);
-        Lights { table, distribution, tri_entry, area, env_entry, bounds }
+        Lights { table, distribution, tri_entry, area, env_entry, bounded, bounds }
     }
 
     /// True when the scene has no light to *sample* (delta lights are not sampled; see
@@ -182,6 +187,22 @@ impl Lights {
             return None;
         }
         let (entry, p_sel, _) = self.distribution.sample_discrete(u_sel);
+        self.sample_entry(scene, p, entry, p_sel, u)
+    }
+
+    /// Sample an emissive triangle as seen from point `p`, chosen by power among the emissive
+    /// triangles alone (no environment); None when the scene has none. The radiance cache at
+    /// the first vertex ([`crate::render::radiance_cache`]) samples only these.
+    pub fn sample_bounded(&self, scene: &Scene, p: Vec3, u_sel: f32, u: Vec2) -> Option<LightSample> {
+        if !(self.bounded.total > 0.0) {
+            return None;
+        }
+        let (entry, p_sel, _) = self.bounded.sample_discrete(u_sel);
+        self.sample_entry(scene, p, entry, p_sel, u)
+    }
+
+    /// Sample light `entry`, chosen with probability `p_sel`, as seen from `p`.
+    fn sample_entry(&self, scene: &Scene, p: Vec3, entry: usize, p_sel: f32, u: Vec2) -> Option<LightSample> {
         if p_sel <= 0.0 {
             return None;
         }
@@ -242,13 +263,29 @@ impl Lights {
         if entry == u32::MAX {
             return 0.0;
         }
+        self.triangle_pdf(self.distribution.pmf(entry as usize), entry, p, q, ng_q)
+    }
+
+    /// Solid-angle density with which [`Lights::sample_bounded`] picks the point `q` (normal
+    /// `ng_q`, unit) on emissive triangle `prim`, seen from `p`.
+    pub fn pdf_triangle_bounded(&self, prim: u32, p: Vec3, q: Vec3, ng_q: Vec3) -> f32 {
+        let entry = self.tri_entry[prim as usize];
+        if entry == u32::MAX || !(self.bounded.total > 0.0) {
+            return 0.0;
+        }
+        self.triangle_pdf(self.bounded.pmf(entry as usize), entry, p, q, ng_q)
+    }
+
+    /// Solid-angle density of point `q` on the triangle of `entry`, picked with probability
+    /// `p_sel` and then uniformly by area, seen from `p`.
+    fn triangle_pdf(&self, p_sel: f32, entry: u32, p: Vec3, q: Vec3, ng_q: Vec3) -> f32 {
         let to = q - p;
         let d2 = to.length_squared();
         let cos_l = ng_q.dot(to).abs() / d2.sqrt();
         if cos_l <= 1e-7 {
             return 0.0;
         }
-        self.distribution.pmf(entry as usize) / self.area[entry as usize] * d2 / cos_l
+        p_sel / self.area[entry as usize] * d2 / cos_l
     }
 
     /// Solid-angle density with which [`Lights::sample`] picks environment direction `d`.
@@ -329,15 +366,20 @@ mod tests {
     /// The density of `Lights::sample` for direction `d` from `p`: every emissive triangle the
     /// line crosses (sampling ignores occlusion) plus the environment.
     fn pdf_brute(lights: &Lights, scene: &Scene, accel: &Accel, p: Vec3, d: Vec3) -> f32 {
-        let mut pdf = lights.pdf_environment(&scene.environment, d);
-        let mut tmin = 0.0;
+        lights.pdf_environment(&scene.environment, d)
+            + pdf_crossed(scene, accel, p, d, |prim, q, n| lights.pdf_triangle(prim, p, q, n))
+    }
+
+    /// The sum of `pdf(prim, q, ng)` over every triangle the line from `p` along `d` crosses
+    /// (at `q`, unit geometric normal `ng`).
+    fn pdf_crossed(scene: &Scene, accel: &Accel, p: Vec3, d: Vec3, pdf: impl Fn(u32, Vec3, Vec3) -> f32) -> f32 {
+        let (mut sum, mut tmin) = (0.0, 0.0);
         while let Some(h) = accel.intersect(p, d, tmin, f32::INFINITY) {
             let [a, b, c] = scene.mesh.corners(h.prim as usize);
-            let q = p + d * h.t;
-            pdf += lights.pdf_triangle(h.prim, p, q, (b - a).cross(c - a).normalize());
+            sum += pdf(h.prim, p + d * h.t, (b - a).cross(c - a).normalize());
             tmin = h.t * (1.0 + 1e-5) + 1e-6;
         }
-        pdf
+        sum
     }
 
     #[test]
@@ -355,6 +397,33 @@ mod tests {
             assert!(r.passed, "env {env}: {r:?}");
             assert!((r.pdf_integral - r.accepted).abs() < 5e-3, "env {env}: {r:?}");
         }
+    }
+
+    #[test]
+    fn sampling_emitters_alone_matches_its_pdf_and_never_picks_the_environment() {
+        for env in [false, true] {
+            let scene = scene(env);
+            let lights = Lights::new(&scene);
+            let accel = Accel::build(&scene.mesh, BvhPreset::Medium);
+            let p = Vec3::new(0.1, 0.2, 0.0);
+            // every emitter the line crosses, by the emitters-alone density
+            let pdf =
+                |d: Vec3| pdf_crossed(&scene, &accel, p, d, |prim, q, n| lights.pdf_triangle_bounded(prim, p, q, n));
+            let r = chi2_test(
+                Chi2Config { alpha: 1e-3 / 2.0, substeps: 32, ..Chi2Config::default() },
+                |u_sel, u| lights.sample_bounded(&scene, p, u_sel, u).map(|s| s.wi),
+                pdf,
+            );
+            assert!(r.passed, "env {env}: {r:?}");
+            // all of the density lies on the emitters (none on the environment)
+            assert!((r.pdf_integral - r.accepted).abs() < 5e-3 && r.accepted > 0.99, "env {env}: {r:?}");
+            let picks =
+                (0..64).filter_map(|i| lights.sample_bounded(&scene, p, (i as f32 + 0.5) / 64.0, Vec2::splat(0.3)));
+            assert!(picks.into_iter().all(|s| s.dist.is_finite() && !s.is_delta));
+        }
+        // no emitter: nothing to pick
+        let dark = Scene { environment: Environment::Constant(Vec3::ONE), ..Scene::default() };
+        assert!(Lights::new(&dark).sample_bounded(&dark, Vec3::ZERO, 0.5, Vec2::splat(0.5)).is_none());
     }
 
     #[test]

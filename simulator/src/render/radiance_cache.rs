@@ -20,6 +20,21 @@
 //! is what they send along their normal, scaled by the reflectance at the hit) and their
 //! lighting as varying linearly between lattice points. `evsim dataset-noise` and the cache's
 //! test measure what this costs against full paths.
+//!
+//! **At the first vertex** ([`super::film::RenderSettings::cache_vertex`] 1) a second lattice
+//! holds the *indirect* light of every triangle side the camera sees: a camera sample on a
+//! mostly diffuse surface (the specular lobe reflecting under half the light,
+//! [`super::bsdf::Bsdf::specular_share`]) traces only the shadow rays of its direct light, of
+//! the delta lights (the sun: sharp shadows stay exact) and of one emissive triangle picked by
+//! power, and adds its reflectance hint times this lattice's value. The lattice's paths are
+//! camera paths shot at the point that leave out those two direct terms and end at their second
+//! vertex in the first lattice; they keep the environment (sky light through an opening is
+//! soft) and, of an emitter reached by BSDF sampling, the share multiple importance sampling
+//! gives BSDF samples against the camera samples' light samples (near an emitter, where a
+//! light sample's contribution has no bound, nearly all of it). Glossy and metal surfaces keep
+//! the bounce ray. The price is more blur in the indirect light (the lattice's spacing) and
+//! the glossy reflections of mostly diffuse surfaces; the gain is a camera sample with no bounce
+//! ray and indirect light that does not flicker.
 
 use std::sync::OnceLock;
 
@@ -50,6 +65,9 @@ pub struct CacheParams {
     pub clamp: f32,
     /// Light samples per vertex of the cached paths.
     pub light_samples: u32,
+    /// Also a cache of indirect light for the camera paths' first vertex
+    /// ([`super::film::RenderSettings::cache_vertex`] 1, see [`RadianceCache::indirect_lattice`]).
+    pub first: bool,
 }
 
 /// The cache of one scene (see the [module docs](self)); filled lazily.
@@ -58,6 +76,8 @@ pub struct RadianceCache {
     pub params: CacheParams,
     /// Per triangle, front and back side: the lattice steps and the values of the lattice points.
     sides: Vec<[OnceLock<Lattice>; 2]>,
+    /// The same for the indirect light at the first vertex (empty unless `params.first`).
+    indirect: Vec<[OnceLock<Lattice>; 2]>,
 }
 
 /// One triangle side's lattice.
@@ -72,7 +92,20 @@ pub struct Lattice {
 impl RadianceCache {
     /// An empty cache for `triangles` triangles.
     pub fn new(params: CacheParams, triangles: usize) -> RadianceCache {
-        RadianceCache { params, sides: (0..triangles).map(|_| [OnceLock::new(), OnceLock::new()]).collect() }
+        let sides = |n: usize| (0..n).map(|_| [OnceLock::new(), OnceLock::new()]).collect();
+        let indirect = sides(if params.first { triangles } else { 0 });
+        RadianceCache { params, sides: sides(triangles), indirect }
+    }
+
+    /// The first-vertex lattice of triangle `prim`'s `front` (or back) side, computed by `fill`
+    /// on first use: light reflected as the second-vertex lattice's is, but leaving out the
+    /// direct light of delta lights and emissive triangles at the point (the camera samples
+    /// trace those) and, of the light of emitters that the cache's paths reach by BSDF
+    /// sampling, the share the camera samples' light samples take (MIS). Only with
+    /// `params.first`.
+    #[inline]
+    pub fn indirect_lattice(&self, prim: u32, front: bool, fill: impl FnOnce() -> Lattice) -> &Lattice {
+        self.indirect[prim as usize][usize::from(!front)].get_or_init(fill)
     }
 
     /// The lattice of triangle `prim`'s `front` (or back) side, computed by `fill` on first use.
@@ -81,11 +114,11 @@ impl RadianceCache {
         self.sides[prim as usize][usize::from(!front)].get_or_init(fill)
     }
 
-    /// Triangle sides filled so far and their lattice points.
+    /// Triangle sides filled so far and their lattice points (both lattices).
     pub fn filled(&self) -> (usize, usize) {
         let mut sides = 0;
         let mut points = 0;
-        for l in self.sides.iter().flatten().filter_map(|s| s.get()) {
+        for l in self.sides.iter().chain(&self.indirect).flatten().filter_map(|s| s.get()) {
             sides += 1;
             points += l.values.len();
         }

@@ -97,6 +97,10 @@ pub struct OverrideArgs {
     /// at their second bounce (0 = off).
     #[arg(long)]
     pub radiance_cache: Option<u32>,
+    /// Override [dataset] cache_vertex: the camera-path vertex the radiance cache serves (2, or
+    /// 1: camera samples trace only shadow rays).
+    #[arg(long)]
+    pub cache_vertex: Option<u32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -137,6 +141,7 @@ impl OverrideArgs {
             feature_spp: self.feature_spp,
             texture_filter: self.texture_filter,
             radiance_cache: self.radiance_cache,
+            cache_vertex: self.cache_vertex,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,

@@ -191,6 +191,7 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         texture_filter: args.texture_filter,
         radiance_cache: 0,
         cache_spacing: 0.0,
+        cache_vertex: 2,
         spp_max: 0,
         adaptive_variance: 0.1,
     })

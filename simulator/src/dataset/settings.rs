@@ -75,8 +75,8 @@ pub struct DatasetConfig {
     /// Samples per pixel of every rendered frame (>= 1; with adaptive sampling, `spp_max`, the
     /// fewest a pixel gets). The default 2, with `feature_spp` 32, `temporal_radius` 32 and
     /// `radiance_cache` 32 at `cache_vertex` 1, keeps noise-induced events below 5% in
-    /// `evsim dataset-noise` (factory: 4.08% against the 32-spp reference). With the cache at
-    /// the second vertex it took 6 (4.70%; 4 spp: 5.26%).
+    /// `evsim dataset-noise` (factory: 4.08% against the 32-spp reference, 4.53% against a
+    /// 96-spp one). With the cache at the second vertex it took 6 (4.70%; 4 spp: 5.26%).
     pub spp: u32,
     /// Adaptive sampling (0 or at most `spp` = off; with `denoise`, the default): every pixel of
     /// a sequence frame first takes `spp` samples; pixels whose estimate is still noisy then take more, up to

@@ -327,7 +327,7 @@ fn punctual_incident(light: &PunctualLight, p: Vec3) -> Option<(Vec3, f32, Vec3)
 mod tests {
     use super::*;
     use crate::render::accel::{Accel, BvhPreset};
-    use crate::render::chi2::{chi2_test, Chi2Config};
+    use crate::render::chi2::{chi2_test, Chi2Config, Chi2Result};
     use crate::scene::{Material, TriangleMesh};
 
     /// Three emissive triangles of different power and sidedness around the origin, plus a
@@ -382,18 +382,36 @@ mod tests {
         sum
     }
 
+    /// Chi-square test, on `scene(env)` from a fixed point `p`, of the directions of
+    /// `Lights::sample` (or with `bounded`, `Lights::sample_bounded`) against the density of
+    /// every light the line crosses; returns the result with the scene and its lights.
+    fn chi2_of_sampler(env: bool, bounded: bool) -> (Chi2Result, Scene, Lights) {
+        let scene = scene(env);
+        let lights = Lights::new(&scene);
+        let accel = Accel::build(&scene.mesh, BvhPreset::Medium);
+        let p = Vec3::new(0.1, 0.2, 0.0);
+        let r = chi2_test(
+            Chi2Config { alpha: 1e-3 / 2.0, substeps: 32, ..Chi2Config::default() },
+            |u_sel, u| {
+                match bounded {
+                    true => lights.sample_bounded(&scene, p, u_sel, u),
+                    false => lights.sample(&scene, p, u_sel, u),
+                }
+                .map(|s| s.wi)
+            },
+            |d| match bounded {
+                // every emitter the line crosses, by the emitters-alone density
+                true => pdf_crossed(&scene, &accel, p, d, |prim, q, n| lights.pdf_triangle_bounded(prim, p, q, n)),
+                false => pdf_brute(&lights, &scene, &accel, p, d),
+            },
+        );
+        (r, scene, lights)
+    }
+
     #[test]
     fn light_sampling_matches_its_pdf() {
         for env in [false, true] {
-            let scene = scene(env);
-            let lights = Lights::new(&scene);
-            let accel = Accel::build(&scene.mesh, BvhPreset::Medium);
-            let p = Vec3::new(0.1, 0.2, 0.0);
-            let r = chi2_test(
-                Chi2Config { alpha: 1e-3 / 2.0, substeps: 32, ..Chi2Config::default() },
-                |u_sel, u| lights.sample(&scene, p, u_sel, u).map(|s| s.wi),
-                |d| pdf_brute(&lights, &scene, &accel, p, d),
-            );
+            let (r, ..) = chi2_of_sampler(env, false);
             assert!(r.passed, "env {env}: {r:?}");
             assert!((r.pdf_integral - r.accepted).abs() < 5e-3, "env {env}: {r:?}");
         }
@@ -402,21 +420,11 @@ mod tests {
     #[test]
     fn sampling_emitters_alone_matches_its_pdf_and_never_picks_the_environment() {
         for env in [false, true] {
-            let scene = scene(env);
-            let lights = Lights::new(&scene);
-            let accel = Accel::build(&scene.mesh, BvhPreset::Medium);
-            let p = Vec3::new(0.1, 0.2, 0.0);
-            // every emitter the line crosses, by the emitters-alone density
-            let pdf =
-                |d: Vec3| pdf_crossed(&scene, &accel, p, d, |prim, q, n| lights.pdf_triangle_bounded(prim, p, q, n));
-            let r = chi2_test(
-                Chi2Config { alpha: 1e-3 / 2.0, substeps: 32, ..Chi2Config::default() },
-                |u_sel, u| lights.sample_bounded(&scene, p, u_sel, u).map(|s| s.wi),
-                pdf,
-            );
+            let (r, scene, lights) = chi2_of_sampler(env, true);
             assert!(r.passed, "env {env}: {r:?}");
             // all of the density lies on the emitters (none on the environment)
             assert!((r.pdf_integral - r.accepted).abs() < 5e-3 && r.accepted > 0.99, "env {env}: {r:?}");
+            let p = Vec3::new(0.1, 0.2, 0.0);
             let picks =
                 (0..64).filter_map(|i| lights.sample_bounded(&scene, p, (i as f32 + 0.5) / 64.0, Vec2::splat(0.3)));
             assert!(picks.into_iter().all(|s| s.dist.is_finite() && !s.is_delta));

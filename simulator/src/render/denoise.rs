@@ -100,10 +100,14 @@ pub fn denoise(img: &Image, features: &Features, p: &DenoiseParams) -> Image {
         let step = 1usize << k;
         // per pixel: luminance, and the luminance stop from the 3x3-blurred variance
         lum.par_chunks_mut(w).zip(inv_l.par_chunks_mut(w)).enumerate().for_each(|(y, (lum_row, inv_row))| {
-            for x in 0..w {
-                let i = y * w + x;
-                lum_row[x] = luminance(Vec3::new(irr.r[i], irr.g[i], irr.b[i]));
-                inv_row[x] = 1.0 / (p.sigma_luminance * blur3_at(&irr.var, w, h, x, y).max(0.0).sqrt() + 1e-6);
+            let i = y * w;
+            let rgb = irr.r[i..i + w].iter().zip(&irr.g[i..i + w]).zip(&irr.b[i..i + w]);
+            for (l, ((&r, &g), &b)) in lum_row.iter_mut().zip(rgb) {
+                *l = luminance(Vec3::new(r, g, b));
+            }
+            blur3_row(&irr.var, w, h, y, inv_row);
+            for v in inv_row.iter_mut() {
+                *v = 1.0 / (p.sigma_luminance * v.max(0.0).sqrt() + 1e-6);
             }
         });
         let (src, lum, inv_l, g) = (&irr, &lum, &inv_l, &guides);
@@ -398,6 +402,43 @@ fn pow_128(cos: f32) -> f32 {
     x
 }
 
+/// [`blur3_at`] of every pixel of row `y`, into `out` (bit for bit: the same sums in the same
+/// order, the interior in vector lanes).
+fn blur3_row(v: &[f32], w: usize, h: usize, y: usize, out: &mut [f32]) {
+    if w < 3 {
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = blur3_at(v, w, h, x, y);
+        }
+        return;
+    }
+    let row = |r: usize| &v[r * w..(r + 1) * w];
+    let (r0, r1, r2) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)));
+    let ((a0, b0, c0), (a1, b1, c1), (a2, b2, c2)) = (taps3(r0), taps3(r1), taps3(r2));
+    // the weights `ky * kx` of `blur3_at`, products of powers of two (exact)
+    let (corner, side, centre) = (0.25f32 * 0.25, 0.25f32 * 0.5, 0.5f32 * 0.5);
+    for (x, o) in out[1..w - 1].iter_mut().enumerate() {
+        let mut s = 0.0;
+        s += corner * a0[x];
+        s += side * b0[x];
+        s += corner * c0[x];
+        s += side * a1[x];
+        s += centre * b1[x];
+        s += side * c1[x];
+        s += corner * a2[x];
+        s += side * b2[x];
+        s += corner * c2[x];
+        *o = s;
+    }
+    out[0] = blur3_at(v, w, h, 0, y);
+    out[w - 1] = blur3_at(v, w, h, w - 1, y);
+}
+
+/// A row's left neighbours, centres and right neighbours of its interior (row length >= 2).
+fn taps3(r: &[f32]) -> (&[f32], &[f32], &[f32]) {
+    let n = r.len();
+    (&r[..n - 2], &r[1..n - 1], &r[2..])
+}
+
 /// The 3x3 binomial blur (edges clamped) of `v` at pixel (x, y), for a steadier noise estimate.
 #[inline]
 fn blur3_at(v: &[f32], w: usize, h: usize, x: usize, y: usize) -> f32 {
@@ -629,6 +670,21 @@ mod tests {
             let slow = denoise_per_pixel(&f, &p);
             for (i, (a, b)) in fast.iter().zip(&slow).enumerate() {
                 assert!(a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits), "pixel {i}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn blur3_row_is_blur3_at_bit_for_bit_at_every_size() {
+        let mut rng = Rng::new(5, 1);
+        for (w, h) in [(1, 1), (2, 1), (1, 3), (3, 2), (4, 4), (17, 5)] {
+            let v: Vec<f32> = (0..w * h).map(|_| rng.next_f32() * 3.0 - 0.5).collect();
+            for y in 0..h {
+                let mut row = vec![f32::NAN; w];
+                blur3_row(&v, w, h, y, &mut row);
+                for (x, r) in row.iter().enumerate() {
+                    assert_eq!(r.to_bits(), blur3_at(&v, w, h, x, y).to_bits(), "{w}x{h} at ({x}, {y})");
+                }
             }
         }
     }

@@ -19,8 +19,11 @@
 //! Triangles are clipped against a near plane [`NEAR`] in front of the eye (geometry closer than
 //! that is not seen by the rasteriser; the renderer traces samples nothing covers, so it still
 //! appears where nothing else is behind it). Work is split into [`RASTER_TILE`]-pixel square
-//! tiles, each rasterising the triangles binned to it in index order: the buffer is the same
-//! whatever the thread count.
+//! tiles. A tile draws its triangles nearest first (by their nearest point) and skips a pixel
+//! for a triangle whose nearest point lies behind all of the pixel's samples' current hits
+//! (the factory scene draws 5.6 triangles per covered pixel without this); among equally near
+//! hits a sample keeps the lowest triangle index, so the buffer is exactly what drawing in
+//! index order gives, whatever the order and the thread count.
 
 use std::sync::Arc;
 
@@ -136,6 +139,8 @@ struct RasterTri {
     v: [[f64; 2]; 3],
     /// The reciprocal depth as a plane over the film: `inv_z = dz[0] x + dz[1] y + dz[2]`.
     dz: [f64; 3],
+    /// An upper bound of that plane over the triangle (its nearest point), rounding included.
+    near: f64,
     /// Pixel bounding box, inclusive, clamped to the film.
     x0: u32,
     y0: u32,
@@ -199,21 +204,33 @@ fn raster_tile(tris: &[RasterTri], bin: &[u32], x0: u32, y0: u32, offsets: &Film
         return prim;
     }
     let mut depth = vec![0.0f64; tw * th * s];
-    // the samples' film points, as the renderer computes them
-    let mut film = vec![[0.0f64; 2]; tw * th * s];
+    // per pixel: the farthest of its samples' depths (0 while one is uncovered); a triangle
+    // whose nearest point is farther cannot win any of them
+    let mut farthest = vec![0.0f64; tw * th];
+    // nearest triangles first, so that those behind them are mostly skipped
+    let mut bin = bin.to_vec();
+    bin.sort_unstable_by(|&i, &j| tris[j as usize].near.total_cmp(&tris[i as usize].near).then(i.cmp(&j)));
+    // the samples' film points, as the renderer computes them, one plane per coordinate (so
+    // that a pixel's samples are tested in vector lanes)
+    let (mut film_x, mut film_y) = (vec![0.0f64; tw * th * s], vec![0.0f64; tw * th * s]);
     for y in y0..y1 {
         for x in x0..x1 {
             let base = ((y - y0) as usize * tw + (x - x0) as usize) * s;
-            for (f, o) in film[base..base + s].iter_mut().zip(offsets.pixel(x, y)) {
-                *f = [(x as f32 + o.x) as f64, (y as f32 + o.y) as f64];
+            let points = film_x[base..base + s].iter_mut().zip(&mut film_y[base..base + s]);
+            for ((fx, fy), o) in points.zip(offsets.pixel(x, y)) {
+                (*fx, *fy) = ((x as f32 + o.x) as f64, (y as f32 + o.y) as f64);
             }
         }
     }
-    for &k in bin {
+    for &k in &bin {
         let t = &tris[k as usize];
         let [a, b, c] = t.v;
         for y in t.y0.max(y0)..=t.y1.min(y1 - 1) {
             for x in t.x0.max(x0)..=t.x1.min(x1 - 1) {
+                let pixel = (y - y0) as usize * tw + (x - x0) as usize;
+                if t.near < farthest[pixel] {
+                    continue;
+                }
                 // skip the pixel when its square (with a margin for f32 rounding) lies outside
                 // an edge
                 let (lx, ly, hx, hy) = (x as f64 - 0.01, y as f64 - 0.01, x as f64 + 1.01, y as f64 + 1.01);
@@ -233,18 +250,23 @@ fn raster_tile(tris: &[RasterTri], bin: &[u32], x0: u32, y0: u32, offsets: &Film
                         && edge(p, q, hx, hy) >= 0.0
                 };
                 let covered = inside(b, c) && inside(c, a) && inside(a, b);
-                let base = ((y - y0) as usize * tw + (x - x0) as usize) * s;
-                for j in base..base + s {
-                    let [px, py] = film[j];
-                    if covered || (edge(b, c, px, py) >= 0.0 && edge(c, a, px, py) >= 0.0 && edge(a, b, px, py) >= 0.0)
-                    {
-                        let iz = t.dz[0] * px + t.dz[1] * py + t.dz[2];
-                        if iz > depth[j] {
-                            depth[j] = iz;
-                            prim[j] = t.prim;
-                        }
-                    }
+                let base = pixel * s;
+                let (px, py) = (&film_x[base..base + s], &film_y[base..base + s]);
+                let (depth, prim) = (&mut depth[base..base + s], &mut prim[base..base + s]);
+                // without branches (non-short-circuit `&`, selects): the loops vectorise. A
+                // sample keeps the nearest hit and, among equally near ones, the lowest
+                // triangle index: what drawing in index order with a strict depth test gives
+                for j in 0..s {
+                    let (px, py) = (px[j], py[j]);
+                    let hit = covered
+                        | ((edge(b, c, px, py) >= 0.0) & (edge(c, a, px, py) >= 0.0) & (edge(a, b, px, py) >= 0.0));
+                    let iz = t.dz[0] * px + t.dz[1] * py + t.dz[2];
+                    let tie = (iz == depth[j]) & (prim[j] != NONE) & (t.prim < prim[j]);
+                    let closer = hit & ((iz > depth[j]) | tie);
+                    depth[j] = if closer { iz } else { depth[j] };
+                    prim[j] = if closer { t.prim } else { prim[j] };
                 }
+                farthest[pixel] = depth.iter().fold(f64::INFINITY, |m, &d| m.min(d));
             }
         }
     }
@@ -347,7 +369,12 @@ fn push_tri(out: &mut Vec<RasterTri>, prim: u32, c: [Corner; 3], width: u32, hei
         dz[1] += (q[0] - p[0]) * inv_z[i] * inv_area;
         dz[2] += edge(p, q, 0.0, 0.0) * inv_z[i] * inv_area;
     }
-    out.push(RasterTri { prim, v, dz, x0, y0, x1, y1 });
+    // the plane is largest at a corner; evaluated at a point inside, its rounding error is far
+    // below 1e-12 of the terms' magnitudes
+    let plane = |p: [f64; 2]| dz[0] * p[0] + dz[1] * p[1] + dz[2];
+    let scale = |p: [f64; 2]| (dz[0] * p[0]).abs() + (dz[1] * p[1]).abs() + dz[2].abs();
+    let near = v.iter().map(|&p| plane(p) + 1e-12 * scale(p)).fold(f64::NEG_INFINITY, f64::max);
+    out.push(RasterTri { prim, v, dz, near, x0, y0, x1, y1 });
 }
 
 #[cfg(test)]
@@ -430,6 +457,48 @@ mod tests {
         assert!(covered > n / 2, "the scene should cover most samples: {covered} of {n}");
         // disagreements only where a sample lies within float error of an edge
         assert!(differ * 2000 < n, "{differ} of {n} samples disagree ({agree} agree)");
+    }
+
+    #[test]
+    fn culled_front_to_back_drawing_equals_drawing_in_index_order() {
+        // the scene plus exact duplicates of some quads (same corners, later indices: equal
+        // depths, where the lower index must win)
+        let mut mesh = scene();
+        for k in (4..40).step_by(6) {
+            let idx = mesh.indices[k];
+            mesh.indices.push(idx);
+            mesh.material.push(0);
+        }
+        let cam = Camera::look_at(Vec3::new(0.3, 0.2, 2.0), Vec3::new(-0.2, -0.1, -3.0), Vec3::Y, 0.9);
+        let (w, h, s) = (90, 60, 8);
+        let off = offsets(3, w, h, s);
+        let vis = rasterise(&mesh, &cam, off.clone());
+        // every triangle over every sample of its box, in index order, strict depth test
+        let tris = setup(&mesh, &cam, w, h);
+        let mut depth = vec![0.0f64; (w * h * s) as usize];
+        let mut prim = vec![NONE; depth.len()];
+        for t in &tris {
+            let [a, b, c] = t.v;
+            for y in t.y0..=t.y1 {
+                for x in t.x0..=t.x1 {
+                    for (i, o) in off.pixel(x, y).iter().enumerate() {
+                        let (px, py) = ((x as f32 + o.x) as f64, (y as f32 + o.y) as f64);
+                        let k = ((y * w + x) * s) as usize + i;
+                        let inside =
+                            edge(b, c, px, py) >= 0.0 && edge(c, a, px, py) >= 0.0 && edge(a, b, px, py) >= 0.0;
+                        let iz = t.dz[0] * px + t.dz[1] * py + t.dz[2];
+                        if inside && iz > depth[k] {
+                            (depth[k], prim[k]) = (iz, t.prim);
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(vis.prims, prim);
+        let dups = (0..vis.prims.len())
+            .filter(|&k| (mesh.indices.len() - 6..mesh.indices.len()).contains(&(prim[k] as usize)));
+        assert_eq!(dups.count(), 0, "a duplicate (higher index) won a tie");
+        assert!(prim.iter().filter(|&&p| p != NONE).count() > prim.len() / 2);
     }
 
     #[test]

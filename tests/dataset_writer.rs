@@ -273,6 +273,7 @@ fn bad_settings_name_the_field() {
     check(&|t| t.replace("spp = 2\n", "spp = 2\nspp_max = 5000\n"), &["dataset.spp_max"]);
     check(&|t| t.split("[trajectory]").next().unwrap().to_string(), &["trajectory", "missing"]);
     check(&|t| t.replace("sharp_spp = 4", "sharp_spp = 1"), &["dataset.sharp_spp"]);
+    check(&|t| t.replace("spp = 2\n", "spp = 2\ntemporal_stride = 0\n"), &["dataset.temporal_stride", "1..=64"]);
     std::fs::write(&toml, &text).unwrap();
     let e = Plan::resolve(&toml, &Overrides { threshold: Some(-0.1), ..Overrides::default() }).unwrap_err();
     assert!(e.to_string().contains("events") && e.to_string().contains("c_pos"), "{e}");
@@ -372,6 +373,14 @@ fn sweep_overrides_reach_the_plan_and_a_shared_frame_cache_skips_rendering() {
     assert_eq!(n.refractory.map(|r| r.period_ns), Some(250_000));
     let off = over(Overrides { threshold_sigma: Some(0.0), refractory_ms: Some(0.0), ..Overrides::default() }).unwrap();
     assert!(off.events.noise.threshold_mismatch.is_none() && off.events.noise.refractory.is_none());
+
+    // the temporal window's stride shapes the frames (as used: at most the radius)
+    let stride = |s: u32, r: u32| {
+        over(Overrides { temporal_stride: Some(s), temporal_radius: Some(r), ..Overrides::default() }).unwrap().render_key
+    };
+    assert_ne!(stride(1, 4), stride(2, 4));
+    assert_eq!(stride(4, 4), stride(9, 4));
+    assert_eq!(stride(1, 0), stride(3, 0), "no window, no stride");
 
     // speed re-times the path: half the frames at twice the speed, another render key
     let fast = over(Overrides { speed: Some(2.0), ..Overrides::default() }).unwrap();

@@ -93,6 +93,10 @@ struct RenderIdentity<'a> {
     /// Only written when it shapes the frames (denoising on, radius > 0).
     #[serde(skip_serializing_if = "is_zero")]
     temporal_radius: u32,
+    /// Only written when it shapes the frames (a window reading every `stride`-th frame, 2 or
+    /// more), so that the keys of frames reading every frame are those of earlier versions.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    temporal_stride: Option<u32>,
     /// Only written when it shapes the frames (denoising on, more rays than `spp`).
     #[serde(skip_serializing_if = "is_zero")]
     feature_spp: u32,
@@ -260,6 +264,7 @@ impl Plan {
                     .then(|| (config.spp_max, config.adaptive_variance.to_bits())),
                 denoise: config.denoise,
                 temporal_radius: if config.denoise { config.temporal_radius } else { 0 },
+                temporal_stride: (config.denoise && config.window_stride() > 1).then_some(config.window_stride()),
                 feature_spp: if config.denoise && config.feature_spp > config.spp { config.feature_spp } else { 0 },
                 texture_filter_bits: config.texture_filter.to_bits(),
                 radiance_cache: config.radiance_cache,
@@ -345,6 +350,16 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
         return bad(
             "dataset.temporal_radius",
             format!("{} must be at most {} frames", d.temporal_radius, crate::render::temporal::MAX_RADIUS),
+        );
+    }
+    if !(1..=crate::render::temporal::MAX_RADIUS as u32).contains(&d.temporal_stride) {
+        return bad(
+            "dataset.temporal_stride",
+            format!(
+                "{} must be 1..={} (the temporal window reads every stride-th frame; 1 = all)",
+                d.temporal_stride,
+                crate::render::temporal::MAX_RADIUS
+            ),
         );
     }
     if d.feature_spp > 4096 {

@@ -31,6 +31,8 @@ pub struct SequenceRenderer<'p, 'r> {
     /// Adaptive sampling's most samples per pixel (0 = off).
     spp_max: u32,
     temporal: TemporalParams,
+    /// The window reads every `stride`-th frame on each side of its centre.
+    stride: usize,
     /// Consecutive raw renders `(index, frame)` (only with denoising).
     window: VecDeque<(usize, SequenceFrame)>,
     /// Raw renders made so far.
@@ -60,6 +62,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
             spp,
             spp_max: c.spp_max,
             temporal: TemporalParams { radius, ..TemporalParams::default() },
+            stride: c.window_stride() as usize,
             window: VecDeque::new(),
             renders: 0,
             samples: 0,
@@ -100,7 +103,9 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         let t = Instant::now();
         let window = self.window.make_contiguous();
         debug_assert_eq!(window[k - lo].0, k);
-        let sources: Vec<Source> = (lo..=hi).filter(|&j| j != k).map(|j| window[j - lo].1.source()).collect();
+        let stride = self.stride;
+        let sources: Vec<Source> =
+            (lo..=hi).filter(|&j| j != k && j.abs_diff(k) % stride == 0).map(|j| window[j - lo].1.source()).collect();
         let (img, features) = gather_sources(&window[k - lo].1, &sources, &self.temporal);
         self.gather_time += t.elapsed();
         let out = denoise(&img, &features, &DenoiseParams::default());

@@ -50,7 +50,7 @@ pub fn keys_from(path: &[(f64, glam::Vec3, glam::Vec3)]) -> Vec<Key> {
 /// The `[dataset]` and `[events]` tables of the outdoor benchmark scenes (tanabata, trolley).
 pub const OUTDOOR_DATASET_AND_EVENTS: &str = "[dataset]
 # defaults: the paper's 600x400, 1000 FPS, 40 ms exposure; every 8th view sharp;
-# 2 spp, 32 feature rays, temporal radius 32, radiance cache at the first vertex (chosen with
+# 2 spp, 32 feature rays, temporal radius 32 read every 2nd frame, first-vertex cache (chosen with
 # `evsim dataset-noise`)
 views = 30
 # direct light plus one bounce: outdoors it looks the same as 5 and renders ~30 % faster

@@ -487,7 +487,7 @@ radiance = [0.55, 0.68, 0.9]
 # fast motion, about 1 s, mostly left to right
 {traj}
 # defaults: the paper's 600x400, 1000 FPS, 40 ms exposure and threshold 0.2 ([events]);
-# 2 spp, 32 feature rays, temporal radius 32, radiance cache at the first vertex (chosen with
+# 2 spp, 32 feature rays, temporal radius 32 read every 2nd frame, first-vertex cache (chosen with
 # `evsim dataset-noise`)
 # max_depth 3 (direct light plus one bounce) keeps 1000 frames affordable
 [dataset]

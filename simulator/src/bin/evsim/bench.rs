@@ -147,7 +147,7 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
     };
     anyhow::ensure!(start + b.frames < n, "the segment ends after the sequence's {n} frames");
     println!(
-        "frames bench: {} frames {}..={} of {} ({}x{}, {} spp{}, {} feature rays, radius {}, cache {}), {} threads",
+        "frames bench: {} frames {}..={} of {} ({}x{}, {} spp{}, {} feature rays, radius {} stride {}, cache {}), {} threads",
         b.scene.display(),
         start,
         start + b.frames,
@@ -162,6 +162,7 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
         },
         c.feature_spp,
         if c.denoise { c.temporal_radius } else { 0 },
+        c.temporal_stride,
         c.radiance_cache,
         rayon::current_num_threads()
     );
@@ -172,6 +173,10 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
     let t = Instant::now();
     seq.frame(start)?;
     println!("  first frame (window of {} renders, cache filling): {:.1} s", seq.renders, t.elapsed().as_secs_f64());
+    let pose = plan.trajectory.pose_at(plan.clock.time_ns(start))?;
+    let settings = simulator::dataset::writer::render_settings(&plan, &pose, start, false);
+    let cache = renderer.radiance_cache(&settings);
+    let filled_first = cache.as_ref().map(|c| c.filled());
     // per timed frame: raster, shading, window, spatial filter, all (seconds)
     let mut rows: Vec<[f64; 5]> = vec![];
     for k in start + 1..=start + b.frames {
@@ -185,11 +190,13 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
         let filter = (seq.denoise_time - before.3).as_secs_f64();
         rows.push([raster, render - raster, gather, filter - gather, all]);
     }
-    let pose = plan.trajectory.pose_at(plan.clock.time_ns(start))?;
-    let settings = simulator::dataset::writer::render_settings(&plan, &pose, start, false);
-    if let Some(cache) = renderer.radiance_cache(&settings) {
+    if let (Some(cache), Some((sides0, points0))) = (cache, filled_first) {
         let (sides, points) = cache.filled();
-        println!("  radiance cache: {sides} triangle sides filled, {points} lattice points");
+        println!(
+            "  radiance cache: {sides} triangle sides filled, {points} lattice points ({} sides, {} points during the timed frames)",
+            sides - sides0,
+            points - points0
+        );
     }
     let col = |i: usize| median(&rows.iter().map(|r| r[i]).collect::<Vec<_>>());
     println!("  per frame (median of {}):", rows.len());

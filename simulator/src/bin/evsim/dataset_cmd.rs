@@ -85,6 +85,10 @@ pub struct OverrideArgs {
     /// before denoising (0 = spatial filter only).
     #[arg(long)]
     pub temporal_radius: Option<u32>,
+    /// Override [dataset] temporal_stride: the temporal window reads every this many frames
+    /// (1 = all).
+    #[arg(long)]
+    pub temporal_stride: Option<u32>,
     /// Override [dataset] feature_spp: camera rays per pixel for the filters' guide buffers
     /// (texture, edges; up to spp = spp).
     #[arg(long)]
@@ -138,6 +142,7 @@ impl OverrideArgs {
             light_samples: self.light_samples,
             denoise: self.denoise,
             temporal_radius: self.temporal_radius,
+            temporal_stride: self.temporal_stride,
             feature_spp: self.feature_spp,
             texture_filter: self.texture_filter,
             radiance_cache: self.radiance_cache,

@@ -376,7 +376,9 @@ fn sweep_overrides_reach_the_plan_and_a_shared_frame_cache_skips_rendering() {
 
     // the temporal window's stride shapes the frames (as used: at most the radius)
     let stride = |s: u32, r: u32| {
-        over(Overrides { temporal_stride: Some(s), temporal_radius: Some(r), ..Overrides::default() }).unwrap().render_key
+        over(Overrides { temporal_stride: Some(s), temporal_radius: Some(r), ..Overrides::default() })
+            .unwrap()
+            .render_key
     };
     assert_ne!(stride(1, 4), stride(2, 4));
     assert_eq!(stride(4, 4), stride(9, 4));

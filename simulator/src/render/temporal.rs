@@ -22,7 +22,8 @@
 //! single frame's spatial filter cannot tell them from real lighting edges.
 //!
 //! Reading every neighbour costs a reprojection per neighbour and pixel (about 0.3 s per
-//! 600x400 frame at radius 32 on 2 cores). Merging runs of 8 frames once into the grid of their
+//! 600x400 frame at radius 32 on 2 cores; the dataset reads every second one by default,
+//! `[dataset] temporal_stride`). Merging runs of 8 frames once into the grid of their
 //! first and reading the merged blocks was measured and not adopted: it cut that to 0.13 s but
 //! raised the noise-induced events (factory at 300x200, radius 16, 4 spp: 16.6% -> 17.9%, and
 //! 19.0% reading only blocks): two bilinear reads blur the lighting and what a block's first

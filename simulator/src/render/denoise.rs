@@ -388,8 +388,10 @@ fn fast_exp(x: f32) -> f32 {
     let g = t - fl - 0.5;
     let p = std::f32::consts::SQRT_2
         * (1.0 + g * (std::f32::consts::LN_2 + g * (0.240_226_5 + g * (0.055_504_1 + g * 0.009_618_1))));
-    let bits = ((fl as i32).wrapping_add(127) as u32) << 23;
-    f32::from_bits(bits) * p
+    // 2^fl from the exponent bits; `fl + 127 + 2^23` holds the integer `fl + 127` in its low
+    // mantissa bits (exact for |fl| < 2^22), which vectorises where a float-to-int cast does not
+    let biased = (fl + (127.0 + 8_388_608.0)).to_bits().wrapping_sub(0x4B00_0000);
+    f32::from_bits(biased << 23) * p
 }
 
 /// `max(0, cos)^128` by seven squarings (the default normal stop) instead of a `powf`.
@@ -695,6 +697,19 @@ mod tests {
             let x = -20.0 * i as f32 / 20_000.0;
             let (a, b) = (fast_exp(x), x.exp());
             assert!(((a - b) / b).abs() < 2e-4, "x = {x}: {a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn fast_exp_exponent_bits_equal_an_integer_cast_on_the_weights_range() {
+        for i in 0..=20_000 {
+            let x = -20.0 * i as f32 / 20_000.0;
+            let fl = (x * std::f32::consts::LOG2_E).floor();
+            let cast = f32::from_bits(((fl as i32 + 127) as u32) << 23);
+            let g = x * std::f32::consts::LOG2_E - fl - 0.5;
+            let p = std::f32::consts::SQRT_2
+                * (1.0 + g * (std::f32::consts::LN_2 + g * (0.240_226_5 + g * (0.055_504_1 + g * 0.009_618_1))));
+            assert_eq!(fast_exp(x).to_bits(), (cast * p).to_bits(), "x = {x}");
         }
     }
 

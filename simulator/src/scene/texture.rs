@@ -43,6 +43,55 @@ pub struct Texture {
     /// The box-filtered reductions of `texels` (level 1 = half size, down to 1x1), built on the
     /// first filtered lookup.
     pyramid: OnceLock<Vec<Level>>,
+    /// `texels` as palette indices (see [`Compact`]), built on the first lookup; None when a
+    /// channel has more than 256 distinct values.
+    compact: OnceLock<Option<Compact>>,
+}
+
+/// A texture's texels as four bytes each: per channel, an index into that channel's palette of
+/// at most 256 values. Exact (the palettes hold the texels' values bit for bit; an 8-bit image
+/// has at most 256 per channel), and a quarter of the memory, so that the lookups of a frame's
+/// many camera rays stay in cache.
+#[derive(Clone, Debug)]
+struct Compact {
+    palette: Box<[[f32; 256]; 4]>,
+    index: Vec<[u8; 4]>,
+}
+
+impl Compact {
+    /// The palettes and indices of `texels`, or None if a channel has over 256 distinct values.
+    fn new(texels: &[Vec4]) -> Option<Compact> {
+        let mut palette = Box::new([[0.0f32; 256]; 4]);
+        let mut values: Vec<Vec<u32>> = Vec::with_capacity(4);
+        for (c, pal) in palette.iter_mut().enumerate() {
+            let mut v: Vec<u32> = texels.iter().map(|t| t[c].to_bits()).collect();
+            v.sort_unstable();
+            v.dedup();
+            if v.len() > 256 {
+                return None;
+            }
+            for (p, bits) in pal.iter_mut().zip(&v) {
+                *p = f32::from_bits(*bits);
+            }
+            values.push(v);
+        }
+        let index = texels
+            .iter()
+            .map(|t| {
+                // every value is in its palette, so the search finds it
+                std::array::from_fn(|c| values[c].binary_search(&t[c].to_bits()).unwrap_or(0) as u8)
+            })
+            .collect();
+        Some(Compact { palette, index })
+    }
+
+    /// Texel `i`, bit for bit as it was given.
+    #[inline(always)]
+    fn texel(&self, i: usize) -> Vec4 {
+        let [r, g, b, a] = self.index[i];
+        let p = &self.palette;
+        Vec4::new(p[0][r as usize], p[1][g as usize], p[2][b as usize], p[3][a as usize])
+    }
 }
 
 impl PartialEq for Texture {
@@ -116,6 +165,7 @@ impl Texture {
             wrap_u: WrapMode::Repeat,
             wrap_v: WrapMode::Repeat,
             pyramid: OnceLock::new(),
+            compact: OnceLock::new(),
         }
     }
 
@@ -142,7 +192,11 @@ impl Texture {
 
     /// Bilinear lookup at texture coordinate `uv` (glTF: (0,0) is the top-left of the image).
     pub fn sample(&self, uv: Vec2) -> Vec4 {
-        bilinear(&self.texels, self.width, self.height, (self.wrap_u, self.wrap_v), uv)
+        let wrap = (self.wrap_u, self.wrap_v);
+        match self.compact.get_or_init(|| Compact::new(&self.texels)) {
+            Some(c) => bilinear(|i| c.texel(i), self.width, self.height, wrap, uv),
+            None => bilinear(|i| self.texels[i], self.width, self.height, wrap, uv),
+        }
     }
 
     /// Filtered lookup: the texture averaged over the footprint spanned by the texture-coordinate
@@ -188,7 +242,7 @@ impl Texture {
                 self.sample(uv)
             } else {
                 let l = &levels[k - 1];
-                bilinear(&l.texels, l.width, l.height, (self.wrap_u, self.wrap_v), uv)
+                bilinear(|i| l.texels[i], l.width, l.height, (self.wrap_u, self.wrap_v), uv)
             }
         };
         if f <= 0.0 || i >= levels.len() {
@@ -199,12 +253,19 @@ impl Texture {
     }
 }
 
-/// Bilinear lookup in a row-major `width` x `height` grid of texels.
-fn bilinear(texels: &[Vec4], width: u32, height: u32, (wrap_u, wrap_v): (WrapMode, WrapMode), uv: Vec2) -> Vec4 {
+/// Bilinear lookup in a row-major `width` x `height` grid of texels, texel `i` being `texel(i)`.
+#[inline(always)]
+fn bilinear(
+    texel: impl Fn(usize) -> Vec4,
+    width: u32,
+    height: u32,
+    (wrap_u, wrap_v): (WrapMode, WrapMode),
+    uv: Vec2,
+) -> Vec4 {
     let x = uv.x * width as f32 - 0.5;
     let y = uv.y * height as f32 - 0.5;
     if !(x.is_finite() && y.is_finite()) {
-        return texels[0];
+        return texel(0);
     }
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
@@ -213,7 +274,7 @@ fn bilinear(texels: &[Vec4], width: u32, height: u32, (wrap_u, wrap_v): (WrapMod
     let (xa, xb) = wrap_pair(x0, w, wrap_u);
     let (ya, yb) = wrap_pair(y0, h, wrap_v);
     let (ya, yb) = (ya * w, yb * w);
-    let t = |x: i64, y: i64| texels[(y + x) as usize];
+    let t = |x: i64, y: i64| texel((y + x) as usize);
     let top = t(xa, ya) * (1.0 - fx) + t(xb, ya) * fx;
     let bottom = t(xa, yb) * (1.0 - fx) + t(xb, yb) * fx;
     top * (1.0 - fy) + bottom * fy
@@ -274,7 +335,9 @@ fn box_weights(n: u32, m: u32) -> Vec<Vec<(usize, f32)>> {
 fn wrap_pair(i: i64, n: i64, mode: WrapMode) -> (i64, i64) {
     match mode {
         WrapMode::Repeat => {
-            let a = i.rem_euclid(n);
+            // a power-of-two size (most textures) wraps by a mask, which equals `rem_euclid` in
+            // two's complement and costs a cycle where a 64-bit division costs tens
+            let a = if n & (n - 1) == 0 { i & (n - 1) } else { i.rem_euclid(n) };
             (a, if a + 1 == n { 0 } else { a + 1 })
         }
         _ => (wrap(i, n, mode), wrap(i + 1, n, mode)),
@@ -410,7 +473,39 @@ mod tests {
     }
 
     #[test]
+    fn palette_lookups_equal_full_texel_lookups_bit_for_bit() {
+        // an 8-bit sRGB image (at most 256 values per channel: palettes) and a texture with
+        // more distinct values than a palette holds (full texels)
+        let (w, h) = (37, 23);
+        let bytes = |i: u32, k: u32| ((i.wrapping_mul(2_654_435_761) >> (8 * k)) & 0xff) as f32 / 255.0;
+        let eight_bit: Vec<Vec4> = (0..w * h)
+            .map(|i| Vec4::new(srgb_to_linear(bytes(i, 0)), srgb_to_linear(bytes(i, 1)), bytes(i, 2), -0.0))
+            .collect();
+        let mut rng = crate::render::sampling::Rng::new(7, 0);
+        for (t, paletted) in [(Texture::new("8-bit", w, h, eight_bit), true), (noise(300, 2), false)] {
+            for wrap in [WrapMode::Repeat, WrapMode::ClampToEdge, WrapMode::MirroredRepeat] {
+                let t = Texture { wrap_u: wrap, wrap_v: wrap, ..t.clone() };
+                for _ in 0..2000 {
+                    let uv = Vec2::new(rng.next_f32() * 6.0 - 3.0, rng.next_f32() * 6.0 - 3.0);
+                    let full = bilinear(|i| t.texels[i], t.width, t.height, (wrap, wrap), uv);
+                    assert_eq!(t.sample(uv).to_array().map(f32::to_bits), full.to_array().map(f32::to_bits));
+                }
+                assert_eq!(t.compact.get().map(Option::is_some), Some(paletted), "{}", t.name);
+            }
+        }
+    }
+
+    #[test]
     fn wrap_modes() {
+        // the pair's masked power-of-two path and its division agree everywhere
+        for n in [1i64, 2, 3, 4, 6, 8, 48, 64, 96, 256] {
+            for i in (-3 * n - 2)..(3 * n + 2) {
+                let (a, b) = wrap_pair(i, n, WrapMode::Repeat);
+                assert_eq!((a, b), (wrap(i, n, WrapMode::Repeat), wrap(i + 1, n, WrapMode::Repeat)), "i {i} n {n}");
+            }
+            let far = i64::from(i32::MAX) * 7 + 5;
+            assert_eq!(wrap_pair(-far, n, WrapMode::Repeat).0, (-far).rem_euclid(n));
+        }
         assert_eq!(wrap(-1, 4, WrapMode::Repeat), 3);
         assert_eq!(wrap(5, 4, WrapMode::Repeat), 1);
         assert_eq!(wrap(-1, 4, WrapMode::ClampToEdge), 0);

@@ -266,11 +266,27 @@ fn raster_tile(tris: &[RasterTri], bin: &[u32], x0: u32, y0: u32, offsets: &Film
                     depth[j] = if closer { iz } else { depth[j] };
                     prim[j] = if closer { t.prim } else { prim[j] };
                 }
-                farthest[pixel] = depth.iter().fold(f64::INFINITY, |m, &d| m.min(d));
+                farthest[pixel] = min_of(depth);
             }
         }
     }
     prim
+}
+
+/// The smallest of `v`, infinity when empty: what a fold of `f64::min` from infinity gives (NaNs
+/// skipped; a zero's sign may differ, which no comparison sees), in four lanes so that it
+/// vectorises instead of waiting on one long chain of `min`s.
+#[inline(always)]
+fn min_of(v: &[f64]) -> f64 {
+    let mut m = [f64::INFINITY; 4];
+    let chunks = v.chunks_exact(4);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for l in 0..4 {
+            m[l] = m[l].min(c[l]);
+        }
+    }
+    rest.iter().fold(m[0].min(m[1]).min(m[2].min(m[3])), |r, &d| r.min(d))
 }
 
 /// Project, clip and set up every triangle of `mesh` that may cover part of the film.
@@ -457,6 +473,24 @@ mod tests {
         assert!(covered > n / 2, "the scene should cover most samples: {covered} of {n}");
         // disagreements only where a sample lies within float error of an edge
         assert!(differ * 2000 < n, "{differ} of {n} samples disagree ({agree} agree)");
+    }
+
+    #[test]
+    fn min_of_equals_a_fold_of_min() {
+        let mut rng = Rng::new(3, 0);
+        for n in 0..40 {
+            for _ in 0..50 {
+                let v: Vec<f64> = (0..n)
+                    .map(|_| match rng.next_f32() {
+                        u if u < 0.1 => f64::NAN,
+                        u if u < 0.2 => 0.0,
+                        u => (u as f64 - 0.5) * 1e3,
+                    })
+                    .collect();
+                let fold = v.iter().fold(f64::INFINITY, |m, &d| m.min(d));
+                assert_eq!(min_of(&v), fold, "{v:?}");
+            }
+        }
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! `evsim dataset` end to end on a tiny scene: the reference layout, no-op re-runs, conflicts,
-//! resume after an interruption, and the same bytes whatever the thread count.
+//! resume after an interruption, a camera that sees nothing, and the same bytes whatever the
+//! thread count.
 
 use std::path::{Path, PathBuf};
 
@@ -232,6 +233,22 @@ fn an_interrupted_run_resumes_to_the_same_bytes() {
     let p2 = Plan::resolve(&toml, &swept).unwrap();
     let s = write_dataset(&p2, &opts(&dir.join("d"), Some(cache))).unwrap();
     assert_eq!((s.frames_rendered, s.sharp_rendered), (0, 0));
+}
+
+#[test]
+fn a_camera_that_sees_nothing_is_an_error_naming_the_frame() {
+    // the orbit's centre far behind the camera's back: no frame sees the box. The depth bounds
+    // are traced one frame behind the renders, and their error must still end the run
+    let dir = temp_dir("dataset", "blind");
+    let toml = tiny_scene(&dir);
+    let text = std::fs::read_to_string(&toml).unwrap();
+    let blind = text.replace("target = [0.0, 0.0, 0.0]\nradius", "target = [0.0, 0.0, 100.0]\nradius");
+    assert_ne!(blind, text);
+    std::fs::write(&toml, blind).unwrap();
+    let out = dir.join("out");
+    let e = write_dataset(&plan(&toml), &opts(&out, None)).unwrap_err().to_string();
+    assert!(e.contains("frame 0 at") && e.contains("sees no surface"), "{e}");
+    assert!(!out.join("dataset.toml").exists(), "no manifest for a failed run");
 }
 
 #[test]

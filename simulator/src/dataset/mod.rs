@@ -5,6 +5,8 @@
 //! - [`plan`]: scene file + overrides -> a checked [`Plan`] (frame clock, views, content keys).
 //! - [`cache`]: the half-float EXR frame cache (resume, and sweeps without re-rendering).
 //! - [`writer`]: the pipeline: frames -> events, exposure, sharp renders, metadata, manifest.
+//! - `frame_tail`: what follows each frame (cache, depth bounds, events, views), on a thread
+//!   of its own beside the next frame's render.
 //! - [`blur`]: how far image content moves during each exposure (mean / max pixel displacement).
 //! - [`depth`]: z-depth through pixel centres and the LLFF near/far bounds.
 //! - [`check`]: opens a dataset folder (ours or a public Ev-DeblurBlender one) and verifies
@@ -24,6 +26,7 @@ mod check_events;
 mod check_images;
 pub mod depth;
 pub mod error;
+mod frame_tail;
 pub mod noise;
 pub mod plan;
 pub mod preview;

@@ -16,6 +16,10 @@
 //!    frames of the exposure), `all_poses_bounds.npy`, `all_timestamps.npy`, `transforms.json`
 //!    and, last, the `dataset.toml` manifest that marks the folder complete.
 //!
+//! What follows each frame in stages 1-4 (caching it, its depth bounds, events, exposure, its
+//! sharp views) runs one frame behind, beside the next frame's render in the same thread pool
+//! (`super::frame_tail`); the output does not depend on it.
+//!
 //! Every file is written atomically. An interrupted run resumes from the cached frames (the
 //! event and exposure stages are re-run over them, which takes seconds); a complete folder with
 //! the same settings hash is left alone.
@@ -27,12 +31,13 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use super::cache::{round_to_f16, FrameCache};
-use super::depth::{bounds, depth_grid};
+use super::frame_tail::{Finished, FrameTail};
 use super::plan::{Plan, PIPELINE_VERSION};
 use super::sequence::SequenceRenderer;
 use super::settings::NoisePattern;
 use super::DatasetError;
 use crate::events::sinks::NerfH5Sink;
+use crate::events::EventSink;
 use crate::events::{EventConfig, EventSimulator};
 use crate::exposure::{Exposure, ExposureStack, ViewSpec};
 use crate::image_io::write_atomic;
@@ -84,6 +89,8 @@ pub struct Summary {
     pub denoise_time: Duration,
     /// Wall time spent reading cached frames.
     pub cache_read_time: Duration,
+    /// Wall time of writing new renders to the frame cache.
+    pub cache_write_time: Duration,
     /// Wall time of the event model and the event file.
     pub events_time: Duration,
     /// Wall time of exposure averaging and PNG encoding.
@@ -245,89 +252,71 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
 
     // stages 1-3: frames -> events + blurry views
     let blurry: Vec<ViewSpec> = plan.views.iter().copied().filter(|v| !matches!(v.exposure, Exposure::Sharp)).collect();
-    let mut stack = ExposureStack::new(&blurry, plan.clock, w, h)
+    let stack = ExposureStack::new(&blurry, plan.clock, w, h)
         .map_err(|e| DatasetError::config(&plan.scene_file, "dataset", e.to_string()))?;
     let event_cfg: EventConfig = plan.events.clone();
-    let mut sim = EventSimulator::new(event_cfg, w, h)
+    let sim = EventSimulator::new(event_cfg, w, h)
         .map_err(|e| DatasetError::config(&plan.scene_file, "events", e.to_string()))?;
     let events_path = out.join("events.h5");
     let mut sink = NerfH5Sink::create(&events_path).map_err(|e| DatasetError::io(&events_path, "cannot create", e))?;
-    let mut frame_bounds = Vec::with_capacity(n_frames);
-    let mut frame_poses = Vec::with_capacity(n_frames);
+    let mut tail = FrameTail::new(plan, &renderer.accel, out, sim, stack);
     let mut seq = SequenceRenderer::new(plan, &renderer, c.spp);
-    // without separate sharp renders: the views whose sharp image is frame k
-    let sharp_at = |k: usize| {
-        plan.views.iter().filter(move |v| plan.sharp_spp.is_none() && plan.clock.frame_at(v.mid_ns) == Some(k))
-    };
-    pb.set_message("frames");
-    for k in 0..n_frames {
-        let t_ns = plan.clock.time_ns(k);
-        let pose = plan.trajectory.pose_at(t_ns).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
+    // frame k from the cache or rendered: (frame, wall time, of which denoising)
+    let mut next_frame = |k: usize| -> Result<(Finished, Duration, Duration), DatasetError> {
+        let pose =
+            plan.trajectory.pose_at(plan.clock.time_ns(k)).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
         let path = cache.frame_path(c.fps, c.spp, c.noise_pattern, k);
         let t = Instant::now();
-        let frame = match FrameCache::load(&path)?.filter(|i| (i.width, i.height) == (w, h)) {
-            Some(img) => {
-                summary.cache_read_time += t.elapsed();
-                img
-            }
-            None => {
-                let denoise_time = seq.denoise_time;
-                let mut img = seq.frame(k)?;
-                round_to_f16(&mut img);
-                FrameCache::store(&path, &img)?;
-                summary.render_time += t.elapsed();
-                summary.denoise_time += seq.denoise_time - denoise_time;
-                summary.frames_rendered += 1;
-                count_render(&mut summary)?;
-                img
-            }
-        };
-        pb.inc(c.spp as u64);
-
-        // depth bounds of this frame's camera
-        let t = Instant::now();
-        let cam = pose.camera(plan.yfov as f32);
-        let b = bounds(&depth_grid(&renderer.accel, &cam, w, h, DEPTH_STRIDE)).ok_or_else(|| {
-            DatasetError::stage(
-                format!("frame {k} at {} ms", t_ns as f64 / 1e6),
-                "the camera sees no surface, so LLFF near/far bounds are undefined; point the trajectory at the scene",
-            )
-        })?;
-        frame_bounds.push(b);
-        frame_poses.push(pose);
-        summary.metadata_time += t.elapsed();
-
-        // events see the sensor irradiance, gain included
-        let t = Instant::now();
-        let stats = if c.gain == 1.0 {
-            sim.step(&frame, t_ns, &mut sink)
+        if let Some(frame) = FrameCache::load(&path)?.filter(|i| (i.width, i.height) == (w, h)) {
+            return Ok((Finished { k, pose, frame, store: None }, t.elapsed(), Duration::ZERO));
+        }
+        let denoise_time = seq.denoise_time;
+        let mut frame = seq.frame(k)?;
+        round_to_f16(&mut frame);
+        Ok((Finished { k, pose, frame, store: Some(path) }, t.elapsed(), seq.denoise_time - denoise_time))
+    };
+    pb.set_message("frames");
+    // frame k renders while frame k - 1 passes the tail (cache, depth bounds, events, views)
+    let mut pending: Option<Finished> = None;
+    let mut stop = None;
+    for k in 0..=n_frames {
+        let produce = (k < n_frames && stop.is_none()).then_some(k);
+        let (next, passed) = rayon::join(
+            || produce.map(&mut next_frame).transpose(),
+            || pending.take().map(|f| tail.take(f)).transpose(),
+        );
+        if passed?.is_some() {
+            sink.push(tail.events()).map_err(|e| DatasetError::io(&events_path, "cannot write", e))?;
+        }
+        if let Some(e) = stop {
+            return Err(e); // interrupted, once the last frame rendered is cached
+        }
+        let Some((f, time, denoise_time)) = next? else { continue };
+        if f.store.is_some() {
+            summary.render_time += time;
+            summary.denoise_time += denoise_time;
+            summary.frames_rendered += 1;
+            stop = count_render(&mut summary).err();
         } else {
-            let mut scaled = frame.clone();
-            scaled.pixels.iter_mut().for_each(|p| *p *= c.gain);
-            sim.step(&scaled, t_ns, &mut sink)
+            summary.cache_read_time += time;
         }
-        .map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
-        summary.events_on += stats.on;
-        summary.events_off += stats.off;
-        summary.events_time += t.elapsed();
-
-        let t = Instant::now();
-        let finished = stack.push(k, &frame).map_err(|e| DatasetError::stage(format!("frame {k}: exposure"), e))?;
-        for (id, img) in finished {
-            write_png(&images.join(image_name(id, n_views)), &img, plan)?;
-        }
-        for view in sharp_at(k) {
-            write_sharp(plan, out, view, &frame)?;
-        }
-        summary.exposure_time += t.elapsed();
+        pb.inc(c.spp as u64);
+        pending = Some(f);
     }
-    // every frame this run made was rendered once; what else the window rendered came from the cache
-    summary.window_renders = seq.renders.saturating_sub(summary.frames_rendered);
-    stack.finish().map_err(|e| DatasetError::stage("exposure", e))?;
+    let tail = tail.finish()?;
     let t = Instant::now();
     let written = sink.finish().map_err(|e| DatasetError::io(&events_path, "cannot complete", e))?;
-    debug_assert_eq!(written, summary.events_on + summary.events_off);
     summary.events_time += t.elapsed();
+    // every frame this run made was rendered once; what else the window rendered came from the cache
+    summary.window_renders = seq.renders.saturating_sub(summary.frames_rendered);
+    summary.events_on = tail.events_on;
+    summary.events_off = tail.events_off;
+    summary.events_time += tail.events_time;
+    summary.exposure_time = tail.exposure_time;
+    summary.metadata_time = tail.metadata_time;
+    summary.cache_write_time = tail.cache_write_time;
+    debug_assert_eq!(written, summary.events_on + summary.events_off);
+    let (frame_poses, frame_bounds) = (tail.frame_poses, tail.frame_bounds);
 
     summary.peak_rss[0] = peak_rss();
 
@@ -410,7 +399,7 @@ fn cached_or_rendered(
 
 /// Write the sharp image of `view`: `images_sharp_1/NN.png` and, for a sharp test view, also
 /// `images_1/NN.png`.
-fn write_sharp(plan: &Plan, out: &Path, view: &ViewSpec, img: &Image) -> Result<(), DatasetError> {
+pub(super) fn write_sharp(plan: &Plan, out: &Path, view: &ViewSpec, img: &Image) -> Result<(), DatasetError> {
     let name = image_name(view.id, plan.views.len());
     write_png(&out.join("images_sharp_1").join(&name), img, plan)?;
     if matches!(view.exposure, Exposure::Sharp) {
@@ -420,7 +409,7 @@ fn write_sharp(plan: &Plan, out: &Path, view: &ViewSpec, img: &Image) -> Result<
 }
 
 /// Encode a linear view through the camera response (with the gain) and write it atomically.
-fn write_png(path: &Path, img: &Image, plan: &Plan) -> Result<(), DatasetError> {
+pub(super) fn write_png(path: &Path, img: &Image, plan: &Plan) -> Result<(), DatasetError> {
     let bytes = plan
         .config
         .response

@@ -211,10 +211,11 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
         s.sharp_rendered
     );
     println!(
-        "  time: render {:.1} s (of which denoising {:.1} s), cache read {:.1} s, events {:.1} s, exposure+png {:.1} s, depth+metadata {:.1} s",
+        "  time: render {:.1} s (of which denoising {:.1} s), cache read {:.1} s; beside them: cache write {:.1} s, events {:.1} s, exposure+png {:.1} s, depth+metadata {:.1} s",
         secs(s.render_time),
         secs(s.denoise_time),
         secs(s.cache_read_time),
+        secs(s.cache_write_time),
         secs(s.events_time),
         secs(s.exposure_time),
         secs(s.metadata_time),

@@ -16,6 +16,7 @@
 //!   [`EventColumnReader`] is public for the trainer's loader).
 //! - [`preview`]: a contact sheet of one view (sharp, blurry, events).
 //! - [`noise`]: how many events path-tracing noise fires (a segment at spp vs 16x spp).
+//! - [`fidelity`]: how well the events explain a converged reference's brightness changes.
 //! - [`error`] holds [`DatasetError`].
 
 pub mod blur;
@@ -26,6 +27,7 @@ mod check_events;
 mod check_images;
 pub mod depth;
 pub mod error;
+pub mod fidelity;
 mod frame_tail;
 pub mod noise;
 pub mod plan;
@@ -37,5 +39,5 @@ pub mod writer;
 pub use check_events::{Col as EventCol, EventColumnReader};
 pub use error::DatasetError;
 pub use plan::Plan;
-pub use settings::{DatasetConfig, NoisePattern, Overrides};
+pub use settings::{DatasetConfig, NoisePattern, Overrides, Shading};
 pub use writer::{write_dataset, RunOptions, Summary};

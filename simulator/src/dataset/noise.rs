@@ -91,6 +91,19 @@ impl Comparison {
         DiffMap { pool, width: blocks.0, height: blocks.1, excess, missing }
     }
 
+    /// Two event lists compared by their counts per pixel and polarity (one window).
+    pub fn of_events(test: &[crate::events::Event], reference: &[crate::events::Event]) -> Comparison {
+        let count = |events: &[crate::events::Event]| {
+            let mut c = Counted::default();
+            for e in events {
+                *c.bins.entry(((e.y as u32) << 16 | e.x as u32, e.p > 0, 0)).or_insert(0) += 1;
+                c.total += 1;
+            }
+            c
+        };
+        Comparison::of(&count(test), &count(reference))
+    }
+
     fn of(test: &Counted, reference: &Counted) -> Comparison {
         let excess =
             test.bins.iter().map(|(k, &n)| n.saturating_sub(*reference.bins.get(k).unwrap_or(&0)) as u64).sum();

@@ -68,6 +68,8 @@ pub struct Plan {
     pub render_key: String,
     /// SHA-256 of every setting.
     pub settings_hash: String,
+    /// Camera position of every frame of the sequence.
+    pub camera_path: std::sync::Arc<Vec<glam::Vec3>>,
 }
 
 /// The part of the plan that determines rendered pixels (hashed into the render key).
@@ -109,6 +111,10 @@ struct RenderIdentity<'a> {
     /// Only written when not the default 2 (with the cache on), as `texture_filter_bits`.
     #[serde(skip_serializing_if = "Option::is_none")]
     cache_vertex: Option<u32>,
+    /// Only written for surface-cache frames (paths per point, spacing bits, camera samples,
+    /// glossy paths), so that the keys of path-traced frames are those of earlier versions.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    surface: Option<(u32, u32, u32, u32)>,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -269,6 +275,12 @@ impl Plan {
                 texture_filter_bits: config.texture_filter.to_bits(),
                 radiance_cache: config.radiance_cache,
                 cache_vertex: (config.radiance_cache > 0 && config.cache_vertex != 2).then_some(config.cache_vertex),
+                surface: (config.shading == super::Shading::SurfaceCache).then_some((
+                    config.surface_paths,
+                    config.surface_spacing.to_bits(),
+                    config.feature_spp,
+                    config.glossy_paths,
+                )),
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
             })
@@ -281,6 +293,10 @@ impl Plan {
                 .as_bytes(),
         );
         let sharp_spp = config.sharp_spp;
+        let camera_path = (0..clock.n_frames)
+            .map(|k| trajectory.pose_at(clock.time_ns(k)).map(|p| p.camera(yfov as f32).origin()))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| DatasetError::stage("trajectory", e))?;
         Ok(Plan {
             scene_file: scene_file.to_path_buf(),
             scene,
@@ -296,6 +312,7 @@ impl Plan {
             scene_key,
             render_key,
             settings_hash,
+            camera_path: std::sync::Arc::new(camera_path),
         })
     }
 
@@ -375,6 +392,18 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
         return bad(
             "dataset.radiance_cache",
             format!("{} must be at most 1024 paths per cache point (0 turns the cache off)", d.radiance_cache),
+        );
+    }
+    if d.surface_paths == 0 {
+        return bad("dataset.surface_paths", "0 must be at least 1 (paths per surface-cache point)".into());
+    }
+    if d.glossy_paths == 0 {
+        return bad("dataset.glossy_paths", "0 must be at least 1 (paths per camera sample on glossy surfaces)".into());
+    }
+    if !(d.surface_spacing >= 0.0 && d.surface_spacing.is_finite()) {
+        return bad(
+            "dataset.surface_spacing",
+            format!("{} must be a length >= 0 in world units (0 = the scene's diagonal over 512)", d.surface_spacing),
         );
     }
     if !(1..=2).contains(&d.cache_vertex) {

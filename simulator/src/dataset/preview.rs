@@ -84,7 +84,7 @@ pub fn contact_sheet(plan: &Plan, renderer: &Renderer, view: Option<usize>) -> R
     let sharp = match sharp {
         Some(frame) => frame,
         None => {
-            let mut img = super::writer::render_frame(renderer, &settings(k_mid, true)?, c.denoise).0;
+            let mut img = super::writer::render_frame(renderer, &settings(k_mid, true)?, plan).0;
             super::cache::round_to_f16(&mut img);
             img
         }

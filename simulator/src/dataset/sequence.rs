@@ -55,7 +55,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
     /// `spp` for the dataset; the noise measurement also renders its reference through here).
     pub fn new(plan: &'p Plan, renderer: &'r Renderer<'p>, spp: u32) -> SequenceRenderer<'p, 'r> {
         let c = &plan.config;
-        let radius = if c.denoise { c.temporal_radius as usize } else { 0 };
+        let radius = if c.denoise && c.shading == super::Shading::PathTraced { c.temporal_radius as usize } else { 0 };
         SequenceRenderer {
             plan,
             renderer,
@@ -83,6 +83,17 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
     /// Frame `k` as the dataset's stages see it (not yet rounded to halves). `k` must not be
     /// smaller than in the previous call (a programming error otherwise).
     pub fn frame(&mut self, k: usize) -> Result<Image, DatasetError> {
+        if self.plan.config.shading == super::Shading::SurfaceCache {
+            let settings = self.settings(k)?;
+            let t = Instant::now();
+            let vis = self.renderer.visibility(&settings, settings.feature_spp.max(1));
+            self.raster_time += t.elapsed();
+            let img = self.renderer.render_surface(&settings, &vis);
+            self.renders += 1;
+            self.samples += vis.samples as u64 * img.pixels.len() as u64;
+            self.render_time += t.elapsed();
+            return Ok(img);
+        }
         if !self.plan.config.denoise {
             let settings = self.settings(k)?;
             let t = Instant::now();

@@ -24,6 +24,10 @@
 //! radiance_cache = 32      # paths per point of the radiance cache ending paths at the
 //!                          # second bounce (0 = off: full paths)
 //! cache_vertex = 1         # the path vertex the cache serves: 1 (shadow rays only) or 2
+//! shading = "path_traced"  # or "surface_cache": frames read one converged surface cache
+//! surface_paths = 256      # with surface_cache: paths per cache point
+//! surface_spacing = 0.0    # with surface_cache: cache lattice spacing (0 = diagonal / 512)
+//! glossy_paths = 64        # with surface_cache: paths per glossy triangle and pixel
 //! response = { type = "gamma", gamma = 2.2 }
 //! ```
 //!
@@ -48,6 +52,22 @@ pub enum NoisePattern {
     Fixed,
     /// Every frame draws new random numbers (noise flickers from frame to frame).
     PerFrame,
+}
+
+/// How the frames of a sequence are made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Shading {
+    /// Every frame reads one converged estimate of the light surfaces reflect, computed once
+    /// per dataset ([`crate::render::integrator::surface`]): `feature_spp` camera samples per
+    /// pixel, delta lights from shadow lattices, glossy surfaces traced (`glossy_paths`); no
+    /// image filter. Not yet the default: its lattices take minutes to fill and its frames
+    /// seconds each at 600x400 (see `docs/fidelity.md`).
+    SurfaceCache,
+    /// Every frame is path traced at `spp` (with the radiance cache, the temporal window and
+    /// the spatial filter as `radiance_cache`, `temporal_radius` and `denoise` say).
+    #[default]
+    PathTraced,
 }
 
 /// The `[dataset]` table.
@@ -181,6 +201,16 @@ pub struct DatasetConfig {
     /// blurred to the lattice's spacing and mostly diffuse surfaces lose their glossy reflections
     /// of other surfaces (factory, 256 spp, against full paths: 33.9 dB PSNR, 36.6 dB at 2).
     pub cache_vertex: u32,
+    /// How frames are made: `surface_cache` or `path_traced` (see [`Shading`]).
+    pub shading: Shading,
+    /// With `shading = "surface_cache"`: paths per point of the surface cache (count, >= 1).
+    pub surface_paths: u32,
+    /// With `shading = "surface_cache"`: spacing of the surface cache's lattice (world units;
+    /// 0 = the scene's bounding-box diagonal over 512).
+    pub surface_spacing: f32,
+    /// With `shading = "surface_cache"`: paths per camera sample on glossy and metal surfaces
+    /// (count, >= 1), whose reflection follows the view and is traced in every frame.
+    pub glossy_paths: u32,
 }
 
 impl DatasetConfig {
@@ -222,6 +252,10 @@ impl Default for DatasetConfig {
             texture_filter: 0.0,
             radiance_cache: 32,
             cache_vertex: 1,
+            shading: Shading::default(),
+            surface_paths: 256,
+            surface_spacing: 0.0,
+            glossy_paths: 64,
         }
     }
 }
@@ -273,6 +307,14 @@ pub struct Overrides {
     pub radiance_cache: Option<u32>,
     /// `[dataset] cache_vertex`: the camera-path vertex the radiance cache serves (1 or 2).
     pub cache_vertex: Option<u32>,
+    /// `[dataset] shading`: `surface_cache` or `path_traced`.
+    pub shading: Option<Shading>,
+    /// `[dataset] surface_paths`: paths per surface-cache point (count).
+    pub surface_paths: Option<u32>,
+    /// `[dataset] surface_spacing`: the surface cache's lattice spacing (world units; 0 = auto).
+    pub surface_spacing: Option<f32>,
+    /// `[dataset] glossy_paths`: paths per camera sample on glossy surfaces (count).
+    pub glossy_paths: Option<u32>,
     /// `[events.noise.threshold_mismatch] sigma`: per-pixel threshold spread (log units; 0 = off).
     pub threshold_sigma: Option<f32>,
     /// `[events.noise] leak_rate_hz`: leak events per pixel per second (Hz).
@@ -316,6 +358,10 @@ impl Overrides {
             texture_filter: over.texture_filter.or(self.texture_filter),
             radiance_cache: over.radiance_cache.or(self.radiance_cache),
             cache_vertex: over.cache_vertex.or(self.cache_vertex),
+            shading: over.shading.or(self.shading),
+            surface_paths: over.surface_paths.or(self.surface_paths),
+            surface_spacing: over.surface_spacing.or(self.surface_spacing),
+            glossy_paths: over.glossy_paths.or(self.glossy_paths),
             threshold_sigma: over.threshold_sigma.or(self.threshold_sigma),
             leak_rate_hz: over.leak_rate_hz.or(self.leak_rate_hz),
             shot_noise_rate_hz: over.shot_noise_rate_hz.or(self.shot_noise_rate_hz),
@@ -379,6 +425,10 @@ impl Overrides {
         d.texture_filter = self.texture_filter.unwrap_or(d.texture_filter);
         d.radiance_cache = self.radiance_cache.unwrap_or(d.radiance_cache);
         d.cache_vertex = self.cache_vertex.unwrap_or(d.cache_vertex);
+        d.shading = self.shading.unwrap_or(d.shading);
+        d.surface_paths = self.surface_paths.unwrap_or(d.surface_paths);
+        d.surface_spacing = self.surface_spacing.unwrap_or(d.surface_spacing);
+        d.glossy_paths = self.glossy_paths.unwrap_or(d.glossy_paths);
         let noise = &mut ev.noise;
         if let Some(sigma) = self.threshold_sigma {
             let mode = noise.threshold_mismatch.map(|m| m.mode).unwrap_or_default();

@@ -143,13 +143,16 @@ fn io_stage(path: &Path) -> impl Fn(anyhow::Error) -> DatasetError + '_ {
     move |e| DatasetError::stage(path.display(), format!("{e:#}"))
 }
 
-/// Render settings of frame `k` (or, with `sharp`, of the sharp render at that frame time).
-/// Render one frame of a dataset: the path tracer's image, denoised when `denoise` is on
-/// (`[dataset] denoise`). Every stage that renders (the writer, the preview, the noise
-/// measurement) goes through here, so that they all see the same frames.
-/// Also returns the time spent denoising.
-pub fn render_frame(renderer: &Renderer, settings: &RenderSettings, denoise: bool) -> (Image, Duration) {
-    if denoise {
+/// Render one single frame of a dataset (a sharp render at a view's mid-time): with
+/// `[dataset] shading = "surface_cache"` from the surface cache with `max(feature_spp, spp)`
+/// camera samples per pixel, else the path tracer's image, denoised (spatially) when `denoise`
+/// is on. Also returns the time spent denoising.
+pub fn render_frame(renderer: &Renderer, settings: &RenderSettings, plan: &Plan) -> (Image, Duration) {
+    if plan.config.shading == super::Shading::SurfaceCache {
+        let vis = renderer.visibility(settings, settings.feature_spp.max(settings.spp));
+        return (renderer.render_surface(settings, &vis), Duration::ZERO);
+    }
+    if plan.config.denoise {
         let (img, features) = renderer.render_with_features(settings);
         let t = Instant::now();
         let out = crate::render::denoise::denoise(&img, &features, &crate::render::denoise::DenoiseParams::default());
@@ -174,6 +177,10 @@ pub fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> Rende
     s.texture_filter = c.texture_filter;
     s.radiance_cache = c.radiance_cache;
     s.cache_vertex = c.cache_vertex;
+    s.surface_paths = c.surface_paths;
+    s.surface_spacing = c.surface_spacing;
+    s.glossy_paths = c.glossy_paths;
+    s.camera_path = Some(plan.camera_path.clone());
     if sharp {
         s.spp = plan.sharp_spp.unwrap_or(c.spp);
         // sharp renders draw from their own streams (far from any sequence frame index)
@@ -327,13 +334,8 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
         let k = plan.clock.frame_at(view.mid_ns).expect("views lie on frame times");
         let sharp_spp = plan.sharp_spp.unwrap_or(c.spp);
         let path = cache.sharp_path(sharp_spp, view.mid_ns);
-        let (img, rendered) = cached_or_rendered(
-            &renderer,
-            &path,
-            &render_settings(plan, &frame_poses[k], k, true),
-            plan.config.denoise,
-            &mut summary,
-        )?;
+        let (img, rendered) =
+            cached_or_rendered(&renderer, &path, &render_settings(plan, &frame_poses[k], k, true), plan, &mut summary)?;
         if rendered {
             summary.sharp_rendered += 1;
             count_render(&mut summary)?;
@@ -381,7 +383,7 @@ fn cached_or_rendered(
     renderer: &Renderer,
     path: &Path,
     settings: &RenderSettings,
-    plan_denoise: bool,
+    plan: &Plan,
     summary: &mut Summary,
 ) -> Result<(Image, bool), DatasetError> {
     let t = Instant::now();
@@ -389,7 +391,7 @@ fn cached_or_rendered(
         summary.cache_read_time += t.elapsed();
         return Ok((img, false));
     }
-    let (mut img, denoise_time) = render_frame(renderer, settings, plan_denoise);
+    let (mut img, denoise_time) = render_frame(renderer, settings, plan);
     summary.denoise_time += denoise_time;
     round_to_f16(&mut img);
     FrameCache::store(path, &img)?;

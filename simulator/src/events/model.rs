@@ -266,7 +266,7 @@ fn sort_events(events: &mut [Event], t0: i64, t1: i64) {
 
 /// The one intensity a pixel takes the log of: Rec.709 luma, or its RGGB mosaic channel.
 #[inline]
-fn intensity(sensor: Sensor, rgb: Vec3, x: usize, y: usize) -> f32 {
+pub fn intensity(sensor: Sensor, rgb: Vec3, x: usize, y: usize) -> f32 {
     match sensor {
         Sensor::Mono => rgb.dot(LUMA_709),
         Sensor::Rggb => match (x & 1, y & 1) {

@@ -48,6 +48,9 @@ pub struct Renderer<'a> {
     /// The film offsets of the last visibility buffer and what they depend on (see
     /// [`Renderer::film_offsets`]).
     film_offsets: Mutex<Option<(FilmKey, Arc<FilmOffsets>)>>,
+    /// The surface cache of the last surface-cache render (kept while its parameters stay the
+    /// same, see [`surface`]).
+    surface: Mutex<Option<Arc<surface::SurfaceCache>>>,
 }
 
 /// What a film's camera-sample offsets depend on: width, height, samples per pixel, seed, frame
@@ -101,6 +104,7 @@ impl<'a> Renderer<'a> {
             shading,
             cache: Mutex::new(None),
             film_offsets: Mutex::new(None),
+            surface: Mutex::new(None),
         }
     }
 
@@ -242,13 +246,7 @@ impl<'a> Renderer<'a> {
         let spacing = if s.cache_spacing > 0.0 && s.cache_spacing.is_finite() {
             s.cache_spacing
         } else {
-            let (lo, hi) = self
-                .scene
-                .mesh
-                .positions
-                .iter()
-                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-            ((hi - lo).length() / 128.0).max(1e-6)
+            (self.scene_diagonal() / 128.0).max(1e-6)
         };
         // the cached paths start one segment later than the camera's
         let params = CacheParams {
@@ -285,23 +283,41 @@ impl<'a> Renderer<'a> {
     /// lattice).
     fn fill(&self, cache: &RadianceCache, prim: u32, front: bool, indirect: bool) -> Lattice {
         let p = cache.params;
+        let spec = if indirect {
+            FillSpec {
+                paths: p.paths,
+                spacing: p.spacing,
+                mode: PathMode::IndirectFill,
+                path_cache: Some(cache),
+                salt: 1 << 40,
+            }
+        } else {
+            FillSpec { paths: p.paths, spacing: p.spacing, mode: PathMode::Full, path_cache: None, salt: 0 }
+        };
+        self.fill_with(&p, &spec, prim, front)
+    }
+
+    /// Compute a lattice over triangle `prim`'s `front` (or back) side as `spec` says, with the
+    /// path settings of `p`: each point's value is the light its paths reflect (minus the
+    /// point's emission) over their reflectance hint, averaged over `spec.paths` paths.
+    fn fill_with(&self, p: &CacheParams, spec: &FillSpec, prim: u32, front: bool) -> Lattice {
         let [a, b, c] = self.scene.mesh.corners(prim as usize);
         let (e1, e2) = (b - a, c - a);
         let longest = e1.length().max(e2.length()).max((c - b).length());
-        let steps = steps_for(longest, p.spacing);
+        let steps = steps_for(longest, spec.spacing);
         let mut values = vec![Vec3::ZERO; ((steps + 1) * (steps + 2) / 2) as usize];
         let Some(ng) = e1.cross(e2).try_normalize() else {
             return Lattice { steps, values };
         };
         let n = if front { ng } else { -ng };
         let mut s = RenderSettings::new(crate::scene::Camera::look_at(Vec3::ZERO, -Vec3::Z, Vec3::Y, 1.0));
-        // the first-vertex lattice's paths are one segment longer: a camera path's
-        s.max_depth = p.max_depth + u32::from(indirect);
-        s.rr_depth = p.rr_depth + u32::from(indirect);
+        // the first-vertex lattices' paths are one segment longer: a camera path's
+        let longer = u32::from(spec.mode != PathMode::Full);
+        s.max_depth = p.max_depth + longer;
+        s.rr_depth = p.rr_depth + longer;
         s.clamp = p.clamp;
         s.light_samples = p.light_samples;
-        let side = prim as u64 * 2 + u64::from(!front) + if indirect { 1 << 40 } else { 0 };
-        let (mode, path_cache) = if indirect { (PathMode::IndirectFill, Some(cache)) } else { (PathMode::Full, None) };
+        let side = prim as u64 * 2 + u64::from(!front) + spec.salt;
         for j in 0..=steps {
             for i in 0..=steps - j {
                 let k = lattice_index(steps, i, j);
@@ -314,11 +330,20 @@ impl<'a> Renderer<'a> {
                 };
                 let key = pixel_key(p.seed ^ CACHE_SALT, side, k as u64);
                 let (mut refl, mut albedo) = (Vec3::ZERO, Vec3::ZERO);
-                for path in 0..p.paths {
+                for path in 0..spec.paths {
                     let mut rng = SampleStream::new(p.sampler, key, path);
                     let mut first = FirstHit::new(n);
-                    let l =
-                        self.li_first(origin, dir, &s, &mut rng, &mut first, None, Some(Some(hit)), path_cache, mode);
+                    let l = self.li_first(
+                        origin,
+                        dir,
+                        &s,
+                        &mut rng,
+                        &mut first,
+                        None,
+                        Some(Some(hit)),
+                        spec.path_cache,
+                        spec.mode,
+                    );
                     if l.is_finite() {
                         refl += (l - first.emission).max(Vec3::ZERO);
                         albedo += first.albedo;
@@ -679,6 +704,8 @@ impl<'a> Renderer<'a> {
             let end_cache = cache.filter(|_| mode == PathMode::Camera && depth == 1 && bsdf.specular_share(wo) < 0.5);
             // the first-vertex cache's paths: no delta light nor emitter at the first vertex
             let skip_direct = mode == PathMode::IndirectFill && depth == 1;
+            // the surface cache's paths: no delta light at the first vertex
+            let skip_delta = skip_direct || (mode == PathMode::SurfaceFill && depth == 1);
             let sample_light = |u_sel: f32, u: Vec2| match end_cache {
                 Some(_) => self.lights.sample_bounded(scene, sh.p, u_sel, u),
                 None => self.lights.sample(scene, sh.p, u_sel, u),
@@ -689,7 +716,7 @@ impl<'a> Renderer<'a> {
                 sample_light(c[2], Vec2::new(c[0], c[1]))
             });
             let sampled = std::iter::once(first_sample).chain(more_samples).flatten();
-            let delta = self.lights.delta_incident(scene, sh.p).filter(|_| !skip_direct);
+            let delta = self.lights.delta_incident(scene, sh.p).filter(|_| !skip_delta);
             for ls in delta.chain(sampled.filter(|ls| !(skip_direct && ls.dist.is_finite()))) {
                 let wi_local = sh.frame.to_local(ls.wi);
                 if ls.wi.dot(ng_side) > 0.0 {
@@ -752,6 +779,23 @@ enum PathMode {
     /// A path of the first-vertex cache: without the direct light of delta lights and emissive
     /// triangles at its first vertex (the camera samples add those).
     IndirectFill,
+    /// A path of the surface cache ([`surface`]): without the direct light of delta lights at
+    /// its first vertex (the camera samples add that, shadow edges stay sharp).
+    SurfaceFill,
+}
+
+/// How [`Renderer::fill_with`] fills a lattice.
+struct FillSpec<'c> {
+    /// Paths per lattice point.
+    paths: u32,
+    /// Lattice spacing (world units).
+    spacing: f32,
+    /// What the paths compute.
+    mode: PathMode,
+    /// The cache the paths end in at their second vertex.
+    path_cache: Option<&'c RadianceCache>,
+    /// Added to the side's key: keeps the random streams of different lattices apart.
+    salt: u64,
 }
 
 impl PathMode {
@@ -1003,6 +1047,8 @@ fn offset_origin(p: Vec3, n: Vec3) -> Vec3 {
 
 #[path = "first_hits.rs"]
 mod first_hits;
+#[path = "surface.rs"]
+pub mod surface;
 use first_hits::FirstHitSums;
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use anyhow::Result;
 use clap::Args;
 
 use simulator::dataset::noise::{measure, NoiseOptions};
-use simulator::dataset::{write_dataset, NoisePattern, Overrides, Plan, RunOptions};
+use simulator::dataset::{write_dataset, NoisePattern, Overrides, Plan, RunOptions, Shading};
 
 /// Options of `evsim dataset`.
 #[derive(Args, Debug, Clone)]
@@ -105,6 +105,19 @@ pub struct OverrideArgs {
     /// 1: camera samples trace only shadow rays).
     #[arg(long)]
     pub cache_vertex: Option<u32>,
+    /// Override [dataset] shading: how frames are made (surface-cache or path-traced).
+    #[arg(long, value_enum)]
+    pub shading: Option<Shading>,
+    /// Override [dataset] surface_paths: paths per point of the surface cache.
+    #[arg(long)]
+    pub surface_paths: Option<u32>,
+    /// Override [dataset] surface_spacing: the surface cache's lattice spacing (world units; 0 =
+    /// the scene's diagonal over 512).
+    #[arg(long)]
+    pub surface_spacing: Option<f32>,
+    /// Override [dataset] glossy_paths: paths per camera sample on glossy surfaces.
+    #[arg(long)]
+    pub glossy_paths: Option<u32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -147,6 +160,10 @@ impl OverrideArgs {
             texture_filter: self.texture_filter,
             radiance_cache: self.radiance_cache,
             cache_vertex: self.cache_vertex,
+            shading: self.shading,
+            surface_paths: self.surface_paths,
+            surface_spacing: self.surface_spacing,
+            glossy_paths: self.glossy_paths,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,
@@ -346,6 +363,135 @@ pub fn run_noise(args: &NoiseArgs) -> Result<()> {
         } else {
             String::new()
         }
+    );
+    Ok(())
+}
+
+/// Options of `evsim dataset-fidelity`.
+#[derive(Args, Debug, Clone)]
+pub struct FidelityArgs {
+    /// The scene file (as for `evsim dataset`).
+    pub scene: PathBuf,
+    /// Frames in the measured segment (25 at 1000 FPS span 24 ms).
+    #[arg(long, default_value_t = 25)]
+    pub frames: usize,
+    /// Start of the segment (ms from the trajectory's start; default: its middle).
+    #[arg(long)]
+    pub start_ms: Option<f64>,
+    /// Samples per pixel of the reference renders (full paths, no filter).
+    #[arg(long, default_value_t = 512)]
+    pub ref_spp: u32,
+    /// Window lengths (ms) the summed events are scored over.
+    #[arg(long, value_delimiter = ',', default_values_t = [1.0, 4.0, 24.0])]
+    pub windows_ms: Vec<f64>,
+    /// The references' random numbers frame to frame: `fixed` (the same in every frame, so
+    /// their remaining noise barely changes between nearby frames) or `per-frame`.
+    #[arg(long, value_enum, default_value_t = NoisePattern::Fixed)]
+    pub reference_pattern: NoisePattern,
+    /// Skip the second reference (and so the two-reference ceiling): half the reference time.
+    #[arg(long)]
+    pub no_ceiling: bool,
+    /// Score every N-th pixel of every N-th row: the reference renders N^2 times faster.
+    #[arg(long, default_value_t = 1)]
+    pub pixel_stride: u32,
+    /// Cache reference frames in this folder (default: ~/.cache/evblur/references).
+    #[arg(long)]
+    pub reference_cache: Option<PathBuf>,
+    /// Render the references again instead of reading or keeping them.
+    #[arg(long)]
+    pub no_reference_cache: bool,
+    /// Settings overrides.
+    #[command(flatten)]
+    pub overrides: OverrideArgs,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// The default reference cache: `$XDG_CACHE_HOME/evblur/references`, else
+/// `~/.cache/evblur/references`.
+fn default_reference_cache() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    Some(base.join("evblur").join("references"))
+}
+
+/// Run `evsim dataset-fidelity`.
+pub fn run_fidelity(args: &FidelityArgs) -> Result<()> {
+    use simulator::dataset::fidelity::{self, FidelityOptions, Scores};
+    let overrides = args.overrides.resolve();
+    let plan = Plan::resolve(&args.scene, &overrides)?;
+    let start_frame = match args.start_ms {
+        Some(ms) if ms >= 0.0 && ms.is_finite() => Some((ms * 1e6 / plan.clock.dt_ns as f64).round() as usize),
+        Some(ms) => anyhow::bail!("--start-ms {ms}: give a time >= 0 in milliseconds"),
+        None => None,
+    };
+    if let Some(w) = args.windows_ms.iter().find(|w| !(**w > 0.0 && w.is_finite())) {
+        anyhow::bail!("--windows-ms {w}: give positive window lengths in milliseconds, e.g. 1,4,24");
+    }
+    let opts = FidelityOptions {
+        start_frame,
+        frames: args.frames,
+        ref_spp: args.ref_spp,
+        windows_ns: args.windows_ms.iter().map(|w| (w * 1e6).round() as i64).collect(),
+        ceiling: !args.no_ceiling,
+        pixel_stride: args.pixel_stride,
+        reference_pattern: args.reference_pattern,
+        reference_cache: if args.no_reference_cache {
+            None
+        } else {
+            args.reference_cache.clone().or_else(default_reference_cache)
+        },
+        progress: !args.quiet,
+    };
+    let r = fidelity::measure(&plan, &opts)?;
+    let c = &plan.config;
+    println!(
+        "{}: frames {}..{} ({} frames) {}x{}{}, threshold {}/{}, against a {} spp reference (full paths, no filter, {:?} noise pattern)",
+        args.scene.display(),
+        r.start_frame,
+        r.start_frame + r.frames - 1,
+        r.frames,
+        r.width,
+        r.height,
+        if r.pixel_stride > 1 { format!(" (every {}th pixel scored)", r.pixel_stride) } else { String::new() },
+        plan.events.c_pos,
+        plan.events.c_neg,
+        r.ref_spp,
+        args.reference_pattern
+    );
+    let head: String =
+        r.dataset.windows.iter().map(|(w, _)| format!("  {:>7}", format!("{} ms", *w as f64 / 1e6))).collect();
+    println!("{:<28} {:>9} {:>8} {:>6}{head}", "r2 (1 = exact)", "events", "pairs", "sign");
+    let row = |name: &str, s: &Scores| {
+        let w: String = s.windows.iter().map(|(_, r2)| format!("  {r2:>7.3}")).collect();
+        println!("{name:<28} {:>9} {:>8.3} {:>6.3}{w}", s.events, s.pair_r2, s.sign_agreement);
+    };
+    row("dataset frames", &r.dataset);
+    row("ideal (ESIM on reference)", &r.ideal);
+    if let Some(cl) = &r.ceiling {
+        row("ceiling (ESIM on 2nd ref.)", cl);
+    }
+    if let Some((pairs, w)) = r.ratios() {
+        let w: String = w.iter().map(|(_, q)| format!("  {q:>7.3}")).collect();
+        println!("{:<28} {:>9} {pairs:>8.3} {:>6}{w}", "dataset / ceiling", "", "");
+    }
+    println!(
+        "counts per pixel over the segment vs the ideal simulator: {} vs {} events, excess {:.2}%, missed {:.2}%",
+        r.counts.test_events,
+        r.counts.ref_events,
+        100.0 * r.counts.noise_fraction(),
+        100.0 * r.counts.missed_fraction()
+    );
+    println!(
+        "time: dataset frames {:.2} s per frame ({} spp, denoise {}), references {:.1} s ({} of {} frames from the cache)",
+        r.dataset_time.as_secs_f64() / r.frames as f64,
+        c.spp,
+        c.denoise,
+        r.reference_time.as_secs_f64(),
+        r.reference_cached,
+        r.frames * if r.ceiling.is_some() { 2 } else { 1 }
     );
     Ok(())
 }

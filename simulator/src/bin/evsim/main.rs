@@ -51,6 +51,9 @@ enum Command {
     Dataset(dataset_cmd::DatasetArgs),
     /// Measure the events path-tracing noise fires: a segment at the dataset's spp vs 16x spp.
     DatasetNoise(dataset_cmd::NoiseArgs),
+    /// Score a segment's events against a converged reference's brightness changes (event-pair
+    /// and window r2, beside an ideal simulator's).
+    DatasetFidelity(dataset_cmd::FidelityArgs),
     /// Check a dataset folder against the Ev-DeblurBlender layout (images, timestamps, poses, events).
     Check(check_cmd::CheckArgs),
     /// Procedural scenes: generate the registered scene folders.
@@ -193,6 +196,10 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         cache_spacing: 0.0,
         cache_vertex: 2,
         spp_max: 0,
+        surface_paths: 256,
+        surface_spacing: 0.0,
+        glossy_paths: 64,
+        camera_path: None,
         adaptive_variance: 0.1,
     })
 }
@@ -254,6 +261,7 @@ fn main() -> Result<()> {
         Command::Events(args) => events_cmd::run(&args),
         Command::Dataset(args) => dataset_cmd::run(&args),
         Command::DatasetNoise(args) => dataset_cmd::run_noise(&args),
+        Command::DatasetFidelity(args) => dataset_cmd::run_fidelity(&args),
         Command::Check(args) => check_cmd::run(&args),
         Command::Scene { what } => scene_cmd::run(what),
         Command::Bench { what } => bench::run(what),

@@ -86,11 +86,9 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         if self.plan.config.shading == super::Shading::SurfaceCache {
             let settings = self.settings(k)?;
             let t = Instant::now();
-            let vis = self.renderer.visibility(&settings, settings.feature_spp.max(1));
-            self.raster_time += t.elapsed();
-            let img = self.renderer.render_surface(&settings, &vis);
+            let (img, _) = super::writer::render_frame(self.renderer, &settings, self.plan);
             self.renders += 1;
-            self.samples += vis.samples as u64 * img.pixels.len() as u64;
+            self.samples += settings.feature_spp.max(settings.spp) as u64 * img.pixels.len() as u64;
             self.render_time += t.elapsed();
             return Ok(img);
         }

@@ -59,8 +59,8 @@ pub enum NoisePattern {
 #[serde(rename_all = "snake_case")]
 pub enum Shading {
     /// Every frame reads one converged estimate of the light surfaces reflect, computed once
-    /// per dataset ([`crate::render::integrator::surface`]): `feature_spp` camera samples per
-    /// pixel, delta lights from shadow lattices, glossy surfaces traced (`glossy_paths`); no
+    /// per dataset ([`crate::render::integrator::surface`]): `max(feature_spp, spp)` camera
+    /// samples per pixel (sharp renders: `max(feature_spp, sharp_spp)`), delta lights from shadow lattices, glossy surfaces traced (`glossy_paths`); no
     /// image filter. Not yet the default: its lattices take minutes to fill and its frames
     /// seconds each at 600x400 (see `docs/fidelity.md`).
     SurfaceCache,

@@ -36,6 +36,11 @@ use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 /// sequence frames, grouping taken out. 10: grouping again, emission read per ray.
 pub const PIPELINE_VERSION: u32 = 10;
 
+/// Version of the surface-cache frames ([`super::Shading::SurfaceCache`]), in their render key
+/// alone (path-traced frames keep theirs): 2 = grids over triangles in their plane, glossy
+/// streams the same in every frame.
+pub const SURFACE_VERSION: u32 = 2;
+
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]
 pub struct Plan {
@@ -111,10 +116,10 @@ struct RenderIdentity<'a> {
     /// Only written when not the default 2 (with the cache on), as `texture_filter_bits`.
     #[serde(skip_serializing_if = "Option::is_none")]
     cache_vertex: Option<u32>,
-    /// Only written for surface-cache frames (paths per point, spacing bits, camera samples,
-    /// glossy paths), so that the keys of path-traced frames are those of earlier versions.
+    /// Only written for surface-cache frames (surface version, paths per point, spacing bits,
+    /// camera samples, glossy paths, glossy block), so that the keys of path-traced frames are those of earlier versions.
     #[serde(skip_serializing_if = "Option::is_none")]
-    surface: Option<(u32, u32, u32, u32)>,
+    surface: Option<(u32, u32, u32, u32, u32, u32)>,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -276,10 +281,12 @@ impl Plan {
                 radiance_cache: config.radiance_cache,
                 cache_vertex: (config.radiance_cache > 0 && config.cache_vertex != 2).then_some(config.cache_vertex),
                 surface: (config.shading == super::Shading::SurfaceCache).then_some((
+                    SURFACE_VERSION,
                     config.surface_paths,
                     config.surface_spacing.to_bits(),
                     config.feature_spp,
                     config.glossy_paths,
+                    config.glossy_block,
                 )),
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
@@ -396,6 +403,12 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
     }
     if d.surface_paths == 0 {
         return bad("dataset.surface_paths", "0 must be at least 1 (paths per surface-cache point)".into());
+    }
+    if !(1..=16).contains(&d.glossy_block) {
+        return bad(
+            "dataset.glossy_block",
+            format!("{} must be 1..=16 (pixels on a side of the blocks sharing glossy paths)", d.glossy_block),
+        );
     }
     if d.glossy_paths == 0 {
         return bad("dataset.glossy_paths", "0 must be at least 1 (paths per camera sample on glossy surfaces)".into());

@@ -407,3 +407,17 @@ fn photoreceptor_low_pass_delays_events_more_in_the_dark() {
     assert!(bright[3] < 6 && bright[59] == 6, "filtered, but all 6 crossings arrive: {bright:?}");
     assert!(dim[59] < bright[59], "the dim pixel lags: {dim:?}");
 }
+
+#[test]
+fn radiance_above_one_reaches_the_model_unclamped() {
+    // a pixel brightening from 2 to 8 (both beyond the frame camera's white): ln(4) / 0.2 = 6.9
+    // crossings, so 6 ON events; a clamp at 1 would give none
+    let cfg = EventConfig { c_pos: 0.2, c_neg: 0.2, ..EventConfig::default() };
+    let frames = [gray(1, 1, |_, _| 2.0), gray(1, 1, |_, _| 8.0), gray(1, 1, |_, _| 0.5)];
+    let ev = run(&cfg, &frames, &[ms(0), ms(1), ms(2)]);
+    assert_eq!(ev[1].len(), 6, "{:?}", ev[1]);
+    assert!(ev[1].iter().all(|e| e.p > 0));
+    // and down to 0.5, from the last ON level ln(2) + 6 * 0.2: (ln(0.25) - 1.2) / 0.2 = -12.9
+    assert_eq!(ev[2].len(), 12, "{:?}", ev[2]);
+    assert!(ev[2].iter().all(|e| e.p < 0));
+}

@@ -85,16 +85,19 @@ pub struct RenderSettings {
     /// first `spp` samples show a noisy estimate get up to this many in all; at most `spp`
     /// (the default 0) = off.
     pub spp_max: u32,
-    /// Paths per lattice point of the surface cache that [`super::integrator::Renderer::render_surface`]
+    /// Paths per grid point of the surface cache that [`super::integrator::Renderer::render_surface`]
     /// reads ([`super::integrator::surface`]).
     pub surface_paths: u32,
-    /// Lattice spacing of the surface cache (world units; 0 = the scene's bounding-box diagonal
+    /// Largest cell side of the surface cache's grids (world units; 0 = the scene's bounding-box diagonal
     /// over 512).
     pub surface_spacing: f32,
     /// Paths per triangle and pixel on glossy surfaces in a surface-cache render (>= 1).
     pub glossy_paths: u32,
+    /// Side of the blocks of pixels whose glossy samples share their paths in a surface-cache
+    /// render (pixels, >= 1).
+    pub glossy_block: u32,
     /// Camera positions of the sequence a surface-cache render belongs to: its shadow
-    /// lattices are as fine as the nearest of them needs (`None`: this frame's camera alone).
+    /// grids are as fine as the nearest of them needs (`None`: this frame's camera alone).
     pub camera_path: Option<std::sync::Arc<Vec<glam::Vec3>>>,
     /// With `spp_max`: the relative variance of a pixel's estimate adaptive sampling aims at
     /// (see [`crate::dataset::DatasetConfig::adaptive_variance`]).
@@ -123,9 +126,10 @@ impl RenderSettings {
             cache_spacing: 0.0,
             cache_vertex: 2,
             spp_max: 0,
-            surface_paths: 256,
+            surface_paths: 64,
             surface_spacing: 0.0,
             glossy_paths: 64,
+            glossy_block: 1,
             camera_path: None,
             adaptive_variance: 0.1,
         }

@@ -310,49 +310,51 @@ impl<'a> Renderer<'a> {
             return Lattice { steps, values };
         };
         let n = if front { ng } else { -ng };
-        let mut s = RenderSettings::new(crate::scene::Camera::look_at(Vec3::ZERO, -Vec3::Z, Vec3::Y, 1.0));
-        // the first-vertex lattices' paths are one segment longer: a camera path's
-        let longer = u32::from(spec.mode != PathMode::Full);
-        s.max_depth = p.max_depth + longer;
-        s.rr_depth = p.rr_depth + longer;
-        s.clamp = p.clamp;
-        s.light_samples = p.light_samples;
+        let s = fill_settings(p, spec);
         let side = prim as u64 * 2 + u64::from(!front) + spec.salt;
         for j in 0..=steps {
             for i in 0..=steps - j {
                 let k = lattice_index(steps, i, j);
                 let bary = lattice_bary(steps, i, j);
                 let x = a + e1 * bary.x + e2 * bary.y;
-                let origin = offset_origin(x, n);
-                let dir = -n;
-                let Some(hit) = self.accel.intersect_triangle(prim, origin, dir, 0.0, f32::INFINITY) else {
-                    continue;
-                };
-                let key = pixel_key(p.seed ^ CACHE_SALT, side, k as u64);
-                let (mut refl, mut albedo) = (Vec3::ZERO, Vec3::ZERO);
-                for path in 0..spec.paths {
-                    let mut rng = SampleStream::new(p.sampler, key, path);
-                    let mut first = FirstHit::new(n);
-                    let l = self.li_first(
-                        origin,
-                        dir,
-                        &s,
-                        &mut rng,
-                        &mut first,
-                        None,
-                        Some(Some(hit)),
-                        spec.path_cache,
-                        spec.mode,
-                    );
-                    if l.is_finite() {
-                        refl += (l - first.emission).max(Vec3::ZERO);
-                        albedo += first.albedo;
-                    }
-                }
-                values[k] = refl / albedo.max(Vec3::splat(MIN_REFLECTANCE));
+                values[k] = self.fill_point(p, spec, &s, prim, n, x, pixel_key(p.seed ^ CACHE_SALT, side, k as u64));
             }
         }
         Lattice { steps, values }
+    }
+
+    /// One point of a lattice ([`Renderer::fill_with`]): the light reflected at `x` on
+    /// triangle `prim` (side facing `n`) over its reflectance hint, averaged over `spec.paths`
+    /// paths of the stream `key`, with the settings `s` ([`fill_settings`]). Zero where the ray
+    /// shot at `x` misses the triangle.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn fill_point(
+        &self,
+        p: &CacheParams,
+        spec: &FillSpec,
+        s: &RenderSettings,
+        prim: u32,
+        n: Vec3,
+        x: Vec3,
+        key: u64,
+    ) -> Vec3 {
+        let origin = offset_origin(x, n);
+        let dir = -n;
+        let Some(hit) = self.accel.intersect_triangle(prim, origin, dir, 0.0, f32::INFINITY) else {
+            return Vec3::ZERO;
+        };
+        let (mut refl, mut albedo) = (Vec3::ZERO, Vec3::ZERO);
+        for path in 0..spec.paths {
+            let mut rng = SampleStream::new(p.sampler, key, path);
+            let mut first = FirstHit::new(n);
+            let l =
+                self.li_first(origin, dir, s, &mut rng, &mut first, None, Some(Some(hit)), spec.path_cache, spec.mode);
+            if l.is_finite() {
+                refl += (l - first.emission).max(Vec3::ZERO);
+                albedo += first.albedo;
+            }
+        }
+        refl / albedo.max(Vec3::splat(MIN_REFLECTANCE))
     }
 
     /// The colour of pixel (`x`, `y`): the mean of its `spp` traced samples.
@@ -767,9 +769,21 @@ impl<'a> Renderer<'a> {
     }
 }
 
+/// The render settings of a lattice's paths (see [`Renderer::fill_point`]): `p`'s path settings,
+/// with the first-vertex lattices' paths one segment longer (a camera path's).
+fn fill_settings(p: &CacheParams, spec: &FillSpec) -> RenderSettings {
+    let mut s = RenderSettings::new(crate::scene::Camera::look_at(Vec3::ZERO, -Vec3::Z, Vec3::Y, 1.0));
+    let longer = u32::from(spec.mode != PathMode::Full);
+    s.max_depth = p.max_depth + longer;
+    s.rr_depth = p.rr_depth + longer;
+    s.clamp = p.clamp;
+    s.light_samples = p.light_samples;
+    s
+}
+
 /// What a path computes ([`Renderer::li_path`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum PathMode {
+pub(crate) enum PathMode {
     /// Everything: a full path, or with a cache, one ending at its second vertex.
     Full,
     /// A camera path with a first-vertex cache ([`CacheParams::first`]): where the first
@@ -785,7 +799,7 @@ enum PathMode {
 }
 
 /// How [`Renderer::fill_with`] fills a lattice.
-struct FillSpec<'c> {
+pub(crate) struct FillSpec<'c> {
     /// Paths per lattice point.
     paths: u32,
     /// Lattice spacing (world units).

@@ -584,6 +584,29 @@ fn surface_cache_frames_match_full_paths_in_the_lit_room_and_ignore_thread_count
 }
 
 #[test]
+fn surface_cache_glossy_blocks_ignore_thread_count_and_keep_the_mean() {
+    // the lit room with a metal box: its reflection traced by glossy paths shared over 1x1 and
+    // 3x3 blocks of pixels (the edge blocks cut short), against full paths
+    let (mut scene, st) = lit_room();
+    scene.materials[2] = Material { metallic: 1.0, roughness: 0.3, ..lambert(0.8, 0.0) };
+    let r = Renderer::new(&scene);
+    let st = RenderSettings { max_depth: 3, feature_spp: 16, radiance_cache: 16, surface_paths: 32, ..st };
+    assert!(!st.width.is_multiple_of(3) || !st.height.is_multiple_of(3), "the test wants edge blocks");
+    let vis = r.visibility(&st, 16);
+    let truth = r.render(&RenderSettings { spp: 512, ..st.clone() }, None);
+    let t = truth.mean();
+    for block in [1, 3] {
+        let sb = RenderSettings { glossy_block: block, ..st.clone() };
+        let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+        let one = pool(1).install(|| r.render_surface(&sb, &vis));
+        let two = pool(2).install(|| r.render_surface(&sb, &vis));
+        assert_eq!(one, two, "block {block}: the bytes must not depend on thread count");
+        let m = two.mean();
+        assert!((m - t).abs().max_element() < 0.04 * t.max_element(), "block {block}: mean {m} vs full paths {t}");
+    }
+}
+
+#[test]
 fn surface_cache_shadow_lattice_keeps_a_point_lights_shadow_edge_sharp() {
     // a floor under a point light with a square blocker: the surface-cache frame's shadow edge
     // matches the traced render's pixel for pixel, but for the pixels the edge crosses

@@ -199,6 +199,18 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
             points - points0
         );
     }
+    if c.shading == simulator::dataset::settings::Shading::SurfaceCache {
+        let surface = renderer.surface_cache(&settings);
+        let ((sides, points), (shadows, shadow_points)) = (surface.filled(), surface.shadows_filled());
+        println!("  surface cache: {sides} triangle sides, {points} points; shadow grids: {shadows} sides, {shadow_points} points");
+        // the last frame again, every grid it reads filled: the shading alone
+        let k = start + b.frames;
+        let pose = plan.trajectory.pose_at(plan.clock.time_ns(k))?;
+        let again = simulator::dataset::writer::render_settings(&plan, &pose, k, false);
+        let t = Instant::now();
+        simulator::dataset::writer::render_frame(&renderer, &again, &plan);
+        println!("  the last frame again (grids filled): {:.3} s", t.elapsed().as_secs_f64());
+    }
     let col = |i: usize| median(&rows.iter().map(|r| r[i]).collect::<Vec<_>>());
     println!("  per frame (median of {}):", rows.len());
     for (i, name) in ["raster", "shading", "temporal window", "spatial filter", "frame"].iter().enumerate() {

@@ -111,13 +111,17 @@ pub struct OverrideArgs {
     /// Override [dataset] surface_paths: paths per point of the surface cache.
     #[arg(long)]
     pub surface_paths: Option<u32>,
-    /// Override [dataset] surface_spacing: the surface cache's lattice spacing (world units; 0 =
+    /// Override [dataset] surface_spacing: the largest cell side of the surface cache's grids (world units; 0 =
     /// the scene's diagonal over 512).
     #[arg(long)]
     pub surface_spacing: Option<f32>,
-    /// Override [dataset] glossy_paths: paths per camera sample on glossy surfaces.
+    /// Override [dataset] glossy_paths: paths per pixel and triangle on glossy surfaces.
     #[arg(long)]
     pub glossy_paths: Option<u32>,
+    /// Override [dataset] glossy_block: side of the pixel blocks whose glossy samples share
+    /// their paths (pixels).
+    #[arg(long)]
+    pub glossy_block: Option<u32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -164,6 +168,7 @@ impl OverrideArgs {
             surface_paths: self.surface_paths,
             surface_spacing: self.surface_spacing,
             glossy_paths: self.glossy_paths,
+            glossy_block: self.glossy_block,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,
@@ -455,7 +460,7 @@ pub fn run_fidelity(args: &FidelityArgs) -> Result<()> {
         r.frames,
         r.width,
         r.height,
-        if r.pixel_stride > 1 { format!(" (every {}th pixel scored)", r.pixel_stride) } else { String::new() },
+        if r.pixel_stride > 1 { format!(" (one pixel in {} per row and column scored)", r.pixel_stride) } else { String::new() },
         plan.events.c_pos,
         plan.events.c_neg,
         r.ref_spp,

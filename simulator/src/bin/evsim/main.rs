@@ -196,9 +196,10 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         cache_spacing: 0.0,
         cache_vertex: 2,
         spp_max: 0,
-        surface_paths: 256,
+        surface_paths: 64,
         surface_spacing: 0.0,
         glossy_paths: 64,
+        glossy_block: 1,
         camera_path: None,
         adaptive_variance: 0.1,
     })

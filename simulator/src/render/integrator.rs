@@ -243,23 +243,7 @@ impl<'a> Renderer<'a> {
         if s.radiance_cache == 0 || s.max_depth < 3 {
             return None;
         }
-        let spacing = if s.cache_spacing > 0.0 && s.cache_spacing.is_finite() {
-            s.cache_spacing
-        } else {
-            (self.scene_diagonal() / 128.0).max(1e-6)
-        };
-        // the cached paths start one segment later than the camera's
-        let params = CacheParams {
-            paths: s.radiance_cache,
-            spacing,
-            seed: s.seed,
-            sampler: s.sampler,
-            max_depth: s.max_depth - 1,
-            rr_depth: s.rr_depth.saturating_sub(1).max(1),
-            clamp: s.clamp,
-            light_samples: s.light_samples,
-            first: s.cache_vertex == 1,
-        };
+        let params = self.cache_params(s, s.radiance_cache, s.cache_spacing, 128.0, s.cache_vertex == 1);
         let mut slot = self.cache.lock().unwrap_or_else(|e| e.into_inner());
         match &*slot {
             Some(c) if c.params == params => Some(c.clone()),
@@ -268,6 +252,32 @@ impl<'a> Renderer<'a> {
                 *slot = Some(c.clone());
                 Some(c)
             }
+        }
+    }
+
+    /// The parameters of a cache's paths for the render settings `s`: `paths` per point,
+    /// `spacing` (0 or not finite: the scene's diagonal over `divisor`), and `s`'s path
+    /// settings, the paths starting one segment later than the camera's.
+    pub(crate) fn cache_params(
+        &self,
+        s: &RenderSettings,
+        paths: u32,
+        spacing: f32,
+        divisor: f32,
+        first: bool,
+    ) -> CacheParams {
+        let spacing =
+            if spacing > 0.0 && spacing.is_finite() { spacing } else { (self.scene_diagonal() / divisor).max(1e-6) };
+        CacheParams {
+            paths,
+            spacing,
+            seed: s.seed,
+            sampler: s.sampler,
+            max_depth: s.max_depth.saturating_sub(1),
+            rr_depth: s.rr_depth.saturating_sub(1).max(1),
+            clamp: s.clamp,
+            light_samples: s.light_samples,
+            first,
         }
     }
 

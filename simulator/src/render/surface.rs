@@ -279,22 +279,8 @@ impl Renderer<'_> {
     /// The surface cache `s` asks for: the one already made when its parameters match, else a
     /// new, empty one.
     pub fn surface_cache(&self, s: &RenderSettings) -> Arc<SurfaceCache> {
-        let spacing = if s.surface_spacing > 0.0 && s.surface_spacing.is_finite() {
-            s.surface_spacing
-        } else {
-            (self.scene_diagonal() / 512.0).max(1e-6)
-        };
-        let path = CacheParams {
-            paths: s.radiance_cache,
-            spacing,
-            seed: s.seed,
-            sampler: s.sampler,
-            max_depth: s.max_depth.saturating_sub(1),
-            rr_depth: s.rr_depth.saturating_sub(1).max(1),
-            clamp: s.clamp,
-            light_samples: s.light_samples,
-            first: false,
-        };
+        let path = self.cache_params(s, s.radiance_cache, s.surface_spacing, 512.0, false);
+        let spacing = path.spacing;
         let params = SurfaceParams { paths: s.surface_paths.max(1), spacing, path };
         let mut slot = self.surface.lock().unwrap_or_else(|e| e.into_inner());
         let same_path = |c: &SurfaceCache| match &s.camera_path {

@@ -38,8 +38,8 @@ pub const PIPELINE_VERSION: u32 = 10;
 
 /// Version of the surface-cache frames ([`super::Shading::SurfaceCache`]), in their render key
 /// alone (path-traced frames keep theirs): 2 = grids over triangles in their plane, glossy
-/// streams the same in every frame.
-pub const SURFACE_VERSION: u32 = 2;
+/// streams the same in every frame; 3 = glossy blocks sized by the lobe's width, glossy grids.
+pub const SURFACE_VERSION: u32 = 3;
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]
@@ -117,9 +117,9 @@ struct RenderIdentity<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     cache_vertex: Option<u32>,
     /// Only written for surface-cache frames (surface version, paths per point, spacing bits,
-    /// camera samples, glossy paths, glossy block), so that the keys of path-traced frames are those of earlier versions.
+    /// camera samples, glossy paths, glossy block, glossy stride), so that the keys of path-traced frames are those of earlier versions.
     #[serde(skip_serializing_if = "Option::is_none")]
-    surface: Option<(u32, u32, u32, u32, u32, u32)>,
+    surface: Option<(u32, u32, u32, u32, u32, u32, u32)>,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -287,6 +287,7 @@ impl Plan {
                     config.feature_spp,
                     config.glossy_paths,
                     config.glossy_block,
+                    config.glossy_stride,
                 )),
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
@@ -408,6 +409,12 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
         return bad(
             "dataset.glossy_block",
             format!("{} must be 1..=16 (pixels on a side of the blocks sharing glossy paths)", d.glossy_block),
+        );
+    }
+    if d.glossy_stride > 100_000 {
+        return bad(
+            "dataset.glossy_stride",
+            format!("{} must be at most 100000 (frames between glossy keyframes; 0 = none)", d.glossy_stride),
         );
     }
     if d.glossy_paths == 0 {

@@ -24,11 +24,13 @@
 //! radiance_cache = 32      # paths per point of the radiance cache ending paths at the
 //!                          # second bounce (0 = off: full paths)
 //! cache_vertex = 1         # the path vertex the cache serves: 1 (shadow rays only) or 2
-//! shading = "path_traced"  # or "surface_cache": frames read one converged surface cache
+//! shading = "surface_cache" # frames read one converged surface cache (or "path_traced":
+//!                          # spp paths per pixel, filtered as denoise says)
 //! surface_paths = 64       # with surface_cache: paths per cache point
 //! surface_spacing = 0.0    # with surface_cache: cache lattice spacing (0 = diagonal / 512)
 //! glossy_paths = 64        # with surface_cache: paths per glossy triangle and pixel block
 //! glossy_block = 1         # with surface_cache: pixels on a side of those blocks
+//! glossy_stride = 32       # with surface_cache: frames between glossy-grid keyframes
 //! response = { type = "gamma", gamma = 2.2 }
 //! ```
 //!
@@ -59,15 +61,18 @@ pub enum NoisePattern {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Shading {
-    /// Every frame reads one converged estimate of the light surfaces reflect, computed once
-    /// per dataset ([`crate::render::integrator::surface`]): `max(feature_spp, spp)` camera
-    /// samples per pixel (sharp renders: `max(feature_spp, sharp_spp)`), delta lights from
-    /// shadow grids, glossy surfaces traced (`glossy_paths`); no image filter. Not yet the
-    /// default: its frames take seconds each at 600x400 (see `docs/fidelity.md`).
+    /// The default. Every frame reads one converged estimate of the light surfaces reflect,
+    /// computed once per dataset ([`crate::render::integrator::surface`]): `max(feature_spp,
+    /// spp)` camera samples per pixel (sharp renders: `max(feature_spp, sharp_spp)`), delta
+    /// lights from shadow grids, rough glossy lobes from the glossy grids of keyframes every
+    /// `glossy_stride` frames, sharper ones traced (`glossy_paths`); no image filter. Its
+    /// events follow a converged reference far better than the path-traced frames' (factory
+    /// at 600x400: event-pair r2 0.944 of the two-reference ceiling; `docs/fidelity.md`).
+    #[default]
     SurfaceCache,
     /// Every frame is path traced at `spp` (with the radiance cache, the temporal window and
-    /// the spatial filter as `radiance_cache`, `temporal_radius` and `denoise` say).
-    #[default]
+    /// the spatial filter as `radiance_cache`, `temporal_radius` and `denoise` say): the
+    /// pipeline before the surface cache, kept for comparisons.
     PathTraced,
 }
 
@@ -211,14 +216,28 @@ pub struct DatasetConfig {
     /// With `shading = "surface_cache"`: largest cell side of the surface cache's grids (world
     /// units; 0 = the scene's bounding-box diagonal over 512).
     pub surface_spacing: f32,
-    /// With `shading = "surface_cache"`: paths per triangle and block of pixels
-    /// (`glossy_block`) on glossy and metal surfaces (count, >= 1), whose reflection follows the view and is traced in every frame
-    /// (the same random numbers at a pixel in every frame).
+    /// With `shading = "surface_cache"`: paths per glossy-grid point (`glossy_stride` > 0,
+    /// lobes of GGX alpha >= 0.05), and per triangle and block of pixels (`glossy_block`) on
+    /// the glossy surfaces that trace their reflection in every frame (count, >= 1; the same
+    /// random numbers at a pixel in every frame). Factory at 300x200, stride 8: pairs 0.955 of
+    /// the ceiling at 64, 0.957 at 128.
     pub glossy_paths: u32,
-    /// With `shading = "surface_cache"`: pixels on a side of the blocks whose glossy samples
-    /// share their `glossy_paths` paths (1..=16). Factory at 150x100: event-pair r2 0.748 at
-    /// 1, 0.733 at 2, for a quarter of the glossy paths.
+    /// With `shading = "surface_cache"`: pixels on a side of the blocks whose traced glossy
+    /// samples share their `glossy_paths` paths (1..=16): the whole block for rough lobes
+    /// (alpha >= 0.2), half of it for medium ones, one pixel for sharp ones (alpha < 0.05,
+    /// the only ones traced with the default `glossy_stride`). Factory at 300x200 with traced
+    /// glossy paths (`glossy_stride = 0`): pairs 0.926 of the ceiling at 1, 0.898 at 4.
     pub glossy_block: u32,
+    /// With `shading = "surface_cache"`: frames between the keyframes of the camera path whose
+    /// glossy grids rough glossy lobes (GGX alpha >= 0.05) read (0 = none: every glossy sample
+    /// traces its paths; at most 100000). Per keyframe and visible glossy triangle side, a
+    /// grid at the surface cache's spacing holds the light reflected towards that keyframe's
+    /// camera from `glossy_paths` paths per point; a frame blends the two keyframes around it.
+    /// Factory at 300x200 (`evsim dataset-fidelity`, pairs / 1 ms / 4 ms of the ceiling):
+    /// 0.954 / 0.973 / 0.975 at 4, 0.955 / 0.974 / 0.975 at 8, 0.955 / 0.973 / 0.975 at 16,
+    /// 0.955 / 0.974 / 0.975 at 32 (the default); 0.926 / 0.954 / 0.975 with traced paths (0). A keyframe costs about what one frame's
+    /// traced glossy paths did.
+    pub glossy_stride: u32,
 }
 
 impl DatasetConfig {
@@ -265,6 +284,7 @@ impl Default for DatasetConfig {
             surface_spacing: 0.0,
             glossy_paths: 64,
             glossy_block: 1,
+            glossy_stride: 32,
         }
     }
 }
@@ -326,6 +346,8 @@ pub struct Overrides {
     pub glossy_paths: Option<u32>,
     /// `[dataset] glossy_block`: pixels on a side of the blocks sharing glossy paths.
     pub glossy_block: Option<u32>,
+    /// `[dataset] glossy_stride`: frames between glossy-grid keyframes (0 = none).
+    pub glossy_stride: Option<u32>,
     /// `[events.noise.threshold_mismatch] sigma`: per-pixel threshold spread (log units; 0 = off).
     pub threshold_sigma: Option<f32>,
     /// `[events.noise] leak_rate_hz`: leak events per pixel per second (Hz).
@@ -374,6 +396,7 @@ impl Overrides {
             surface_spacing: over.surface_spacing.or(self.surface_spacing),
             glossy_paths: over.glossy_paths.or(self.glossy_paths),
             glossy_block: over.glossy_block.or(self.glossy_block),
+            glossy_stride: over.glossy_stride.or(self.glossy_stride),
             threshold_sigma: over.threshold_sigma.or(self.threshold_sigma),
             leak_rate_hz: over.leak_rate_hz.or(self.leak_rate_hz),
             shot_noise_rate_hz: over.shot_noise_rate_hz.or(self.shot_noise_rate_hz),
@@ -442,6 +465,7 @@ impl Overrides {
         d.surface_spacing = self.surface_spacing.unwrap_or(d.surface_spacing);
         d.glossy_paths = self.glossy_paths.unwrap_or(d.glossy_paths);
         d.glossy_block = self.glossy_block.unwrap_or(d.glossy_block);
+        d.glossy_stride = self.glossy_stride.unwrap_or(d.glossy_stride);
         let noise = &mut ev.noise;
         if let Some(sigma) = self.threshold_sigma {
             let mode = noise.threshold_mismatch.map(|m| m.mode).unwrap_or_default();

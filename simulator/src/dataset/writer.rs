@@ -181,6 +181,7 @@ pub fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> Rende
     s.surface_spacing = c.surface_spacing;
     s.glossy_paths = c.glossy_paths;
     s.glossy_block = c.glossy_block;
+    s.glossy_stride = c.glossy_stride;
     s.camera_path = Some(plan.camera_path.clone());
     if sharp {
         s.spp = plan.sharp_spp.unwrap_or(c.spp);

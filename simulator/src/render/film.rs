@@ -96,6 +96,9 @@ pub struct RenderSettings {
     /// Side of the blocks of pixels whose glossy samples share their paths in a surface-cache
     /// render (pixels, >= 1).
     pub glossy_block: u32,
+    /// Frames between the keyframes whose glossy grids a surface-cache render reads on rough
+    /// glossy lobes (0 = none: every glossy sample traces paths).
+    pub glossy_stride: u32,
     /// Camera positions of the sequence a surface-cache render belongs to: its shadow
     /// grids are as fine as the nearest of them needs (`None`: this frame's camera alone).
     pub camera_path: Option<std::sync::Arc<Vec<glam::Vec3>>>,
@@ -130,6 +133,7 @@ impl RenderSettings {
             surface_spacing: 0.0,
             glossy_paths: 64,
             glossy_block: 1,
+            glossy_stride: 0,
             camera_path: None,
             adaptive_variance: 0.1,
         }

@@ -607,6 +607,54 @@ fn surface_cache_glossy_blocks_ignore_thread_count_and_keep_the_mean() {
 }
 
 #[test]
+fn surface_cache_glossy_grids_keep_the_mean_ignore_thread_count_and_blend_keyframes() {
+    // the lit room with a rough metal box (GGX alpha 0.16: it reads the glossy grids), seen
+    // from a short camera path with keyframes every 2 frames: frames on a keyframe and between
+    // two, against full paths from the same camera
+    let (mut scene, st) = lit_room();
+    scene.materials[2] = Material { metallic: 1.0, roughness: 0.4, ..lambert(0.8, 0.0) };
+    let r = Renderer::new(&scene);
+    let eye = |k: usize| Vec3::new(-0.6 + 0.02 * k as f32, 0.3, 0.9);
+    let path = std::sync::Arc::new((0..5).map(eye).collect::<Vec<_>>());
+    let at = |k: usize| Camera::look_at(eye(k), Vec3::new(0.2, -0.5, -0.3), Vec3::Y, 1.3);
+    let st = RenderSettings {
+        max_depth: 3,
+        feature_spp: 16,
+        radiance_cache: 16,
+        surface_paths: 32,
+        glossy_stride: 2,
+        camera_path: Some(path),
+        ..st
+    };
+    let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+    for k in [2, 1] {
+        let sk = RenderSettings { camera: at(k), ..st.clone() };
+        let vis = r.visibility(&sk, 16);
+        let one = pool(1).install(|| {
+            let fresh = Renderer::new(&scene);
+            fresh.render_surface(&sk, &fresh.visibility(&sk, 16))
+        });
+        let two = pool(2).install(|| r.render_surface(&sk, &vis));
+        assert_eq!(one, two, "frame {k}: the bytes must not depend on thread count or fill order");
+        let truth = r.render(&RenderSettings { spp: 512, camera_path: None, ..sk.clone() }, None);
+        let (m, t) = (two.mean(), truth.mean());
+        assert!((m - t).abs().max_element() < 0.04 * t.max_element(), "frame {k}: mean {m} vs full paths {t}");
+        // the box's pixels (brighter than traced paths would leave them without the grids'
+        // reflection: metal has no diffuse lobe)
+        let traced = r.render_surface(&RenderSettings { glossy_stride: 0, ..sk.clone() }, &vis);
+        let diff = rms(&two.pixels, &traced.pixels) / t.x as f64;
+        assert!(diff < 0.1, "frame {k}: grids vs traced glossy paths, relative RMS {diff}");
+    }
+    // keyframes 0 and 2 are held; a frame on keyframe 2 reads it alone, so rendering frame 2
+    // with a stride of 2 and of 1 (keyframes 2 and 3, weight 0 on 3) gives the same bytes
+    let s2 = RenderSettings { camera: at(2), ..st.clone() };
+    let vis = r.visibility(&s2, 16);
+    let a = r.render_surface(&s2, &vis);
+    let b = r.render_surface(&RenderSettings { glossy_stride: 1, ..s2.clone() }, &vis);
+    assert_eq!(a, b, "a frame on a keyframe reads that keyframe alone");
+}
+
+#[test]
 fn surface_cache_shadow_lattice_keeps_a_point_lights_shadow_edge_sharp() {
     // a floor under a point light with a square blocker: the surface-cache frame's shadow edge
     // matches the traced render's pixel for pixel, but for the pixels the edge crosses

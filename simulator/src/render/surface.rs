@@ -22,13 +22,24 @@
 //! - its reflectance hint times the surface grid's value at the hit (bilinear).
 //!
 //! A sample on a glossy or metal surface adds its emission and its delta lights as above. The
-//! rest of its reflection comes from [`RenderSettings::glossy_paths`] paths shared by the
-//! samples on its triangle in its block of pixels ([`RenderSettings::glossy_block`] on a side)
-//! and spread over their hits: each takes one light sample and one BSDF sample (multiple
-//! importance sampling), whose hit adds its emission and the light it reflects as a diffuse
-//! sample would. Each sample takes that reflected light per unit reflectance hint times its own
-//! hint. A block's glossy paths take the same random numbers in every frame, so their error drifts with the view instead of
-//! flickering (factory, 150x100: 1 ms window r2 0.279 -> 0.301). No image filter follows.
+//! rest of its reflection follows the view, so it cannot be one field over the surfaces; but
+//! the camera path is known in advance. With [`RenderSettings::glossy_stride`] > 0, every
+//! `glossy_stride`-th frame of the path is a keyframe ([`GlossyFrame`]), and a *glossy grid*
+//! per keyframe and triangle side (the surface grids' layout and spacing) holds the light the
+//! point's BSDF reflects towards that keyframe's camera, from `glossy_paths` paths per point
+//! whose random streams are keyed by the point alone: neighbouring keyframes differ by the
+//! change of view, not by noise. A sample on a lobe of GGX alpha >= [`GLOSSY_GRID_ALPHA`]
+//! blends the two keyframes around its frame (linearly along the path) and takes the result
+//! per unit reflectance hint times its own hint.
+//!
+//! Sharper lobes (and every glossy sample with `glossy_stride` 0) trace
+//! [`RenderSettings::glossy_paths`] paths shared by the samples on its triangle in its block
+//! of pixels ([`RenderSettings::glossy_block`] on a side for rough lobes, see [`lobe_block`])
+//! and spread over their hits. A path, here or in a glossy grid, takes one light sample and
+//! one BSDF sample (multiple importance sampling), whose hit adds its emission and the light
+//! it reflects as a diffuse sample would. A block's glossy paths take the same random numbers
+//! in every frame, so their error drifts with the view instead of flickering. No image filter
+//! follows.
 
 use std::sync::{Arc, OnceLock};
 
@@ -51,6 +62,14 @@ const SURFACE_SALT: u64 = 2 << 40;
 /// Salt of the glossy paths' random streams (apart from the camera samples').
 const GLOSSY_SALT: u64 = 0x6c05_5e00_0000_0001;
 
+/// Salt of the glossy grids' random streams.
+const GLOSSY_GRID_SALT: u64 = 0x6c05_5e00_0000_0002;
+
+/// GGX alpha from which a glossy sample reads the keyframes' glossy grids (with
+/// [`RenderSettings::glossy_stride`] > 0) instead of tracing paths: sharper lobes reflect
+/// detail finer than the grids.
+pub const GLOSSY_GRID_ALPHA: f32 = 0.05;
+
 /// Most cells along either axis of a shadow grid.
 pub const MAX_SHADOW_STEPS: u32 = 2048;
 
@@ -62,6 +81,20 @@ struct Sample {
     wo: Vec3,
     /// Index of its pixel in the band of rows being rendered.
     pixel: usize,
+}
+
+/// Side of the pixel blocks whose glossy samples share paths, for a lobe of GGX `alpha` when
+/// [`RenderSettings::glossy_block`] is `block`: the whole block for rough lobes (alpha >= 0.2,
+/// whose reflection changes slowly across the surface), half of it for medium ones, one pixel
+/// for sharp ones (alpha < 0.05: mirror images keep their detail).
+fn lobe_block(block: usize, alpha: f32) -> usize {
+    if alpha >= 0.2 {
+        block
+    } else if alpha >= 0.05 {
+        (block / 2).max(1)
+    } else {
+        1
+    }
 }
 
 /// Distance from `p` to the triangle `a`, `b`, `c`.
@@ -246,6 +279,29 @@ pub struct SurfaceCache {
     cameras: Vec<Vec3>,
     /// Radians per pixel of the film (vertical field of view over height).
     pixel_angle: f32,
+    /// The glossy grids of the keyframes in use (see [`GlossyFrame`]).
+    glossy: std::sync::Mutex<Vec<Arc<GlossyFrame>>>,
+}
+
+/// The glossy grids of one keyframe of the camera path: per triangle side, the light its
+/// rough glossy lobe reflects towards the keyframe's camera, per unit reflectance hint
+/// ([`Renderer::fill_glossy`]). A frame between two keyframes reads both and blends them.
+pub struct GlossyFrame {
+    /// Index of the keyframe in the camera path.
+    frame: usize,
+    /// Its camera position.
+    origin: Vec3,
+    /// Paths per point.
+    paths: u32,
+    /// Per triangle, front and back side.
+    sides: Vec<[OnceLock<Grid>; 2]>,
+}
+
+impl GlossyFrame {
+    /// Triangle sides filled so far and their points computed.
+    fn filled(&self) -> (usize, usize) {
+        filled(&self.sides)
+    }
 }
 
 impl SurfaceCache {
@@ -264,15 +320,87 @@ impl SurfaceCache {
 
     /// Triangle sides filled so far and their points computed.
     pub fn filled(&self) -> (usize, usize) {
-        let grids = self.sides.iter().flatten().filter_map(|s| s.get());
-        grids.fold((0, 0), |(n, p), g| (n + 1, p + g.points))
+        filled(&self.sides)
     }
 
     /// Shadow grids filled so far and their points computed.
     pub fn shadows_filled(&self) -> (usize, usize) {
-        let grids = self.shadows.iter().flatten().filter_map(|s| s.get());
-        grids.fold((0, 0), |(n, p), g| (n + 1, p + g.points))
+        filled(&self.shadows)
     }
+
+    /// Glossy grids of the keyframes held now: keyframes, triangle sides and points computed.
+    pub fn glossy_filled(&self) -> (usize, usize, usize) {
+        let frames = self.glossy.lock().unwrap_or_else(|e| e.into_inner());
+        frames.iter().map(|f| f.filled()).fold((frames.len(), 0, 0), |(k, n, p), (a, b)| (k, n + a, p + b))
+    }
+
+    /// The keyframes a frame whose camera is at `origin` reads, with their weights: with a
+    /// camera path and `stride` > 0, the two keyframes (every `stride` frames of the path, and
+    /// its last frame) around the point of the path nearest `origin`, weighted linearly; else
+    /// `origin`'s own. Keyframes far from these are dropped.
+    fn glossy_frames(&self, origin: Vec3, stride: u32, paths: u32) -> Vec<(Arc<GlossyFrame>, f32)> {
+        let path = &self.cameras;
+        let n = path.len();
+        let stride = stride.max(1) as usize;
+        let wanted: Vec<(usize, Vec3, f32)> = if n < 2 {
+            vec![(0, origin, 1.0)]
+        } else {
+            let t = path_position(path, origin);
+            let k0 = ((t / stride as f32).floor() as usize * stride).min(n - 1);
+            let k1 = (k0 + stride).min(n - 1);
+            let f = if k1 > k0 { ((t - k0 as f32) / (k1 - k0) as f32).clamp(0.0, 1.0) } else { 0.0 };
+            vec![(k0, path[k0], 1.0 - f), (k1, path[k1], f)]
+        };
+        let mut frames = self.glossy.lock().unwrap_or_else(|e| e.into_inner());
+        // keep the keyframes within a stride of these (frames come in order, mostly)
+        let (lo, hi) = (wanted[0].0.saturating_sub(stride), wanted[wanted.len() - 1].0 + stride);
+        // (a lone camera's keyframe is its own position)
+        frames.retain(|f| f.paths == paths && (lo..=hi).contains(&f.frame) && (n >= 2 || f.origin == origin));
+        wanted
+            .into_iter()
+            .filter(|w| w.2 > 0.0)
+            .map(|(k, o, w)| {
+                let frame = match frames.iter().find(|f| f.frame == k && f.origin == o) {
+                    Some(f) => f.clone(),
+                    None => {
+                        let sides = per_side(self.sides.len());
+                        let f = Arc::new(GlossyFrame { frame: k, origin: o, paths, sides });
+                        frames.push(f.clone());
+                        f
+                    }
+                };
+                (frame, w)
+            })
+            .collect()
+    }
+}
+
+/// Sides filled so far in `sides` and their points computed.
+fn filled<T: GridValue>(sides: &[[OnceLock<Grid<T>>; 2]]) -> (usize, usize) {
+    let grids = sides.iter().flatten().filter_map(|s| s.get());
+    grids.fold((0, 0), |(n, p), g| (n + 1, p + g.points))
+}
+
+/// Where along the polyline `path` (>= 2 points) the point nearest `origin` lies, as a
+/// fractional index: exactly `i` when `origin` is point `i` (the first such), else the first
+/// of equally near points.
+fn path_position(path: &[Vec3], origin: Vec3) -> f32 {
+    // a frame of the path itself: exactly its index
+    if let Some(i) = path.iter().position(|&p| p == origin) {
+        return i as f32;
+    }
+    let mut best = (f32::INFINITY, 0.0);
+    for (i, seg) in path.windows(2).enumerate() {
+        let (a, b) = (seg[0], seg[1]);
+        let ab = b - a;
+        let len2 = ab.length_squared();
+        let u = if len2 > 0.0 { ((origin - a).dot(ab) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        let d = (a + ab * u - origin).length_squared();
+        if d < best.0 {
+            best = (d, i as f32 + u);
+        }
+    }
+    best.1
 }
 
 impl Renderer<'_> {
@@ -296,8 +424,14 @@ impl Renderer<'_> {
                     _ => vec![s.camera.origin()],
                 };
                 let pixel_angle = s.camera.yfov / s.height.max(1) as f32;
-                let c =
-                    Arc::new(SurfaceCache { params, sides: per_side(n), shadows: per_side(n), cameras, pixel_angle });
+                let c = Arc::new(SurfaceCache {
+                    params,
+                    sides: per_side(n),
+                    shadows: per_side(n),
+                    cameras,
+                    pixel_angle,
+                    glossy: Default::default(),
+                });
                 *slot = Some(c.clone());
                 c
             }
@@ -313,6 +447,10 @@ impl Renderer<'_> {
         let cache = cache.as_deref();
         let film_rays = s.camera.film_rays(w, h);
         let block = s.glossy_block.clamp(1, 16);
+        let glossy = match s.glossy_stride {
+            0 => Vec::new(),
+            stride => surface.glossy_frames(s.camera.origin(), stride, s.glossy_paths.max(1)),
+        };
         let bands: Vec<Vec<Vec3>> = (0..h.div_ceil(block))
             .into_par_iter()
             .map(|by| {
@@ -326,8 +464,17 @@ impl Renderer<'_> {
                         for dx in 0..cols {
                             let (x, y) = (bx * block + dx, by * block + dy);
                             let pixel = (dy * w + x) as usize;
-                            band[pixel] =
-                                self.surface_pixel(s, x, y, vis, &film_rays, &surface, cache, pixel, &mut samples);
+                            band[pixel] = self.surface_pixel(
+                                s,
+                                x,
+                                y,
+                                vis,
+                                &film_rays,
+                                (&surface, &glossy),
+                                cache,
+                                pixel,
+                                &mut samples,
+                            );
                         }
                     }
                     if !samples.is_empty() {
@@ -354,7 +501,7 @@ impl Renderer<'_> {
         y: u32,
         vis: &Visibility,
         film_rays: &crate::scene::FilmRays,
-        surface: &SurfaceCache,
+        (surface, glossy): (&SurfaceCache, &[(Arc<GlossyFrame>, f32)]),
         cache: Option<&RadianceCache>,
         pixel: usize,
         samples: &mut Vec<Sample>,
@@ -381,8 +528,19 @@ impl Renderer<'_> {
             let bsdf = self.bsdf(hit.prim, sh.uv, fp);
             let wo = sh.frame.to_local(-dir);
             if bsdf.specular_share(wo) >= 0.5 {
-                // glossy: the delta lights here, the rest traced once for the triangle's samples
+                // glossy: the delta lights here; the rest from the keyframes' glossy grids
+                // (rough lobes) or traced once for the triangle's samples
                 sum += le + self.delta_light(&hit, &sh, &bsdf, wo, surface);
+                if !glossy.is_empty() && bsdf.alpha >= GLOSSY_GRID_ALPHA {
+                    let side = usize::from(!sh.front);
+                    let mut g = Vec3::ZERO;
+                    for (frame, w) in glossy {
+                        let fill = || self.fill_glossy(s, surface, cache, hit.prim, sh.front, frame);
+                        g += frame.sides[hit.prim as usize][side].get_or_init(fill).at(sh.p) * *w;
+                    }
+                    sum += bsdf.albedo_hint() * g;
+                    continue;
+                }
                 samples.push(Sample { hit, sh, bsdf, wo, pixel });
                 continue;
             }
@@ -458,17 +616,26 @@ impl Renderer<'_> {
         band: &mut [Vec3],
     ) {
         let key = pixel_key(s.seed ^ GLOSSY_SALT, block_index, 0);
-        let mut prims: Vec<u32> = Vec::new();
+        let block = s.glossy_block.clamp(1, 16) as usize;
+        let w = s.width as usize;
+        // a sample's group: its triangle and its sub-block, whose side follows the lobe's width
+        let group_of = |o: &Sample| {
+            let side = lobe_block(block, o.bsdf.alpha);
+            let (dy, dx) = (o.pixel / w, o.pixel % w % block);
+            (o.hit.prim, side, dy / side, dx / side)
+        };
+        let mut groups = Vec::new();
         for smp in samples {
-            if !prims.contains(&smp.hit.prim) {
-                prims.push(smp.hit.prim);
+            let g = group_of(smp);
+            if !groups.contains(&g) {
+                groups.push(g);
             }
         }
         let paths = s.glossy_paths.max(1);
         let mut group: Vec<&Sample> = Vec::new();
-        for (g, &prim) in prims.iter().enumerate() {
+        for (g, &id) in groups.iter().enumerate() {
             group.clear();
-            group.extend(samples.iter().filter(|o| o.hit.prim == prim));
+            group.extend(samples.iter().filter(|o| group_of(o) == id));
             let mut refl = Vec3::ZERO;
             for j in 0..paths {
                 let smp = group[j as usize % group.len()];
@@ -563,6 +730,54 @@ impl Renderer<'_> {
         })
     }
 
+    /// Compute triangle `prim`'s `front` (or back) side's glossy grid for the keyframe `frame`:
+    /// per point (the surface grid's spacing), the light but the delta lights' that the
+    /// point's BSDF reflects towards the keyframe's camera, per unit reflectance hint, from
+    /// `frame.paths` paths ([`Renderer::glossy_path`]) whose random streams are keyed by the
+    /// point alone: the same in every keyframe, so the grids of neighbouring keyframes differ
+    /// by the change of view, not by noise.
+    fn fill_glossy(
+        &self,
+        s: &RenderSettings,
+        surface: &SurfaceCache,
+        cache: Option<&RadianceCache>,
+        prim: u32,
+        front: bool,
+        frame: &GlossyFrame,
+    ) -> Grid {
+        let corners = self.scene.mesh.corners(prim as usize);
+        let Some(n) = side_normal(corners, front) else {
+            return Grid::over(corners, 0.0, 1, |_, _| Vec3::ZERO);
+        };
+        let p = surface.params;
+        let side = prim as u64 * 2 + u64::from(!front);
+        Grid::over(corners, p.spacing, MAX_SURFACE_CELLS, |k, q| {
+            let origin = offset_origin(q, n);
+            let Some(hit) = self.accel.intersect_triangle(prim, origin, -n, 0.0, f32::INFINITY) else {
+                return Vec3::ZERO;
+            };
+            let sh = self.surface(&hit, origin, -n);
+            let Some(view) = (frame.origin - sh.p).try_normalize() else { return Vec3::ZERO };
+            let wo = sh.frame.to_local(view);
+            if wo.z <= 0.0 {
+                return Vec3::ZERO;
+            }
+            let bsdf = self.bsdf(prim, sh.uv, None);
+            let hint = bsdf.albedo_hint().max(Vec3::splat(super::MIN_REFLECTANCE));
+            let smp = Sample { hit, sh, bsdf, wo, pixel: 0 };
+            let key = pixel_key(p.path.seed ^ GLOSSY_GRID_SALT, side, k);
+            let mut refl = Vec3::ZERO;
+            for j in 0..frame.paths {
+                let mut rng = SampleStream::new(p.path.sampler, key, j);
+                let l = self.glossy_path(s, &smp, surface, cache, &mut rng);
+                if l.is_finite() {
+                    refl += l / hint;
+                }
+            }
+            refl / frame.paths as f32
+        })
+    }
+
     /// Compute triangle `prim`'s `front` (or back) side's shadow grid: per point, whether
     /// each of the first three delta lights is visible (1) or not (0), with cells of half the
     /// smallest pixel footprint the camera path gives the triangle.
@@ -612,6 +827,18 @@ fn side_normal(corners: [Vec3; 3], front: bool) -> Option<Vec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_path_position_is_the_fractional_index_of_the_nearest_point() {
+        let path = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 2.0, 0.0), Vec3::new(1.0, 2.0, 0.0)];
+        assert_eq!(path_position(&path, Vec3::ZERO), 0.0);
+        assert_eq!(path_position(&path, Vec3::X), 1.0);
+        assert_eq!(path_position(&path, Vec3::new(0.25, 0.5, 0.0)), 0.25);
+        assert_eq!(path_position(&path, Vec3::new(1.5, 1.0, 0.0)), 1.5);
+        // beyond the end (the last segment has no length): its start, the first of the equals
+        assert_eq!(path_position(&path, Vec3::new(1.0, 3.0, 0.0)), 2.0);
+        assert_eq!(path_position(&path, Vec3::new(-1.0, 0.0, 0.0)), 0.0);
+    }
 
     #[test]
     fn distance_to_a_triangle_is_the_brute_force_minimum() {

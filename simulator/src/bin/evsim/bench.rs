@@ -203,6 +203,10 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
         let surface = renderer.surface_cache(&settings);
         let ((sides, points), (shadows, shadow_points)) = (surface.filled(), surface.shadows_filled());
         println!("  surface cache: {sides} triangle sides, {points} points; shadow grids: {shadows} sides, {shadow_points} points");
+        let (keys, glossy_sides, glossy_points) = surface.glossy_filled();
+        if keys > 0 {
+            println!("  glossy grids: {keys} keyframes held, {glossy_sides} triangle sides, {glossy_points} points");
+        }
         // the last frame again, every grid it reads filled: the shading alone
         let k = start + b.frames;
         let pose = plan.trajectory.pose_at(plan.clock.time_ns(k))?;
@@ -212,16 +216,33 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
         println!("  the last frame again (grids filled): {:.3} s", t.elapsed().as_secs_f64());
     }
     let col = |i: usize| median(&rows.iter().map(|r| r[i]).collect::<Vec<_>>());
-    println!("  per frame (median of {}):", rows.len());
+    let mean = |i: usize| rows.iter().map(|r| r[i]).sum::<f64>() / rows.len().max(1) as f64;
+    println!("  per frame ({} frames):   median     mean", rows.len());
     for (i, name) in ["raster", "shading", "temporal window", "spatial filter", "frame"].iter().enumerate() {
-        println!("    {:<16} {:7.3} s", name, col(i));
+        println!("    {:<16} {:7.3} s {:7.3} s", name, col(i), mean(i));
     }
     if c.spp_max > c.spp {
         let px = (seq.renders * (c.width * c.height) as usize) as f64;
         println!("  adaptive sampling: {:.2} samples per pixel on average", seq.samples as f64 / px);
     }
-    println!("  {n} frames at this rate: {:.1} min", col(4) * n as f64 / 60.0);
+    println!(
+        "  {n} frames at the median rate: {:.1} min; at the mean rate (grids filled on the way included): {:.1} min",
+        col(4) * n as f64 / 60.0,
+        mean(4) * n as f64 / 60.0
+    );
     Ok(())
+}
+
+/// How a dataset's frames are made, for the benches' headers.
+fn shading_summary(c: &simulator::dataset::DatasetConfig) -> String {
+    match c.shading {
+        simulator::dataset::settings::Shading::SurfaceCache => format!(
+            "surface cache: {} camera samples per pixel, glossy keyframes every {} frames",
+            c.feature_spp.max(c.spp),
+            c.glossy_stride
+        ),
+        simulator::dataset::settings::Shading::PathTraced => format!("path traced: {} spp", c.spp),
+    }
 }
 
 /// Samples per pixel of the Mitsuba ground truth the errors are measured against.
@@ -498,13 +519,13 @@ fn dataset_bench(b: &DatasetBench) -> Result<()> {
     let c = &plan.config;
     let n = plan.clock.n_frames;
     println!(
-        "dataset bench: {} ({} frames {}x{} at {} FPS, {} spp; {} views, sharp images from {}), {} threads",
+        "dataset bench: {} ({} frames {}x{} at {} FPS, {}; {} views, sharp images from {}), {} threads",
         b.scene.display(),
         n,
         c.width,
         c.height,
         c.fps,
-        c.spp,
+        shading_summary(c),
         plan.views.len(),
         plan.sharp_source(),
         rayon::current_num_threads()
@@ -523,7 +544,9 @@ fn dataset_bench(b: &DatasetBench) -> Result<()> {
         mb(s.peak_rss[0]),
         mb(s.peak_rss[1])
     );
-    println!("  of which denoising          {:8.1} s  {:9.2}", s.denoise_time.as_secs_f64(), fps(s.denoise_time));
+    if !s.denoise_time.is_zero() {
+        println!("  of which denoising          {:8.1} s  {:9.2}", s.denoise_time.as_secs_f64(), fps(s.denoise_time));
+    }
     println!("beside the renders (their times overlap the renders'):");
     println!(
         "frame cache writes           {:8.1} s  {:9.1}",

@@ -122,6 +122,10 @@ pub struct OverrideArgs {
     /// their paths (pixels).
     #[arg(long)]
     pub glossy_block: Option<u32>,
+    /// Override [dataset] glossy_stride: frames between the keyframes whose glossy grids rough
+    /// glossy lobes read (0 = none: traced paths).
+    #[arg(long)]
+    pub glossy_stride: Option<u32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -169,6 +173,7 @@ impl OverrideArgs {
             surface_spacing: self.surface_spacing,
             glossy_paths: self.glossy_paths,
             glossy_block: self.glossy_block,
+            glossy_stride: self.glossy_stride,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,
@@ -490,10 +495,16 @@ pub fn run_fidelity(args: &FidelityArgs) -> Result<()> {
         100.0 * r.counts.missed_fraction()
     );
     println!(
-        "time: dataset frames {:.2} s per frame ({} spp, denoise {}), references {:.1} s ({} of {} frames from the cache)",
+        "time: dataset frames {:.2} s per frame ({}), references {:.1} s ({} of {} frames from the cache)",
         r.dataset_time.as_secs_f64() / r.frames as f64,
-        c.spp,
-        c.denoise,
+        match c.shading {
+            simulator::dataset::Shading::SurfaceCache => format!(
+                "surface cache, {} camera samples, glossy keyframes every {} frames",
+                c.feature_spp.max(c.spp),
+                c.glossy_stride
+            ),
+            simulator::dataset::Shading::PathTraced => format!("path traced, {} spp, denoise {}", c.spp, c.denoise),
+        },
         r.reference_time.as_secs_f64(),
         r.reference_cached,
         r.frames * if r.ceiling.is_some() { 2 } else { 1 }

@@ -200,6 +200,7 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         surface_spacing: 0.0,
         glossy_paths: 64,
         glossy_block: 1,
+        glossy_stride: 0,
         camera_path: None,
         adaptive_variance: 0.1,
     })

@@ -123,7 +123,7 @@ fn exact_plane_scores(shading: &str, plan: &Plan) {
 #[test]
 fn per_frame_noise_scores_low() {
     let dir = temp_dir("fidelity", "noisy");
-    let noisy = "max_depth = 3\nspp = 1\ndenoise = false\nnoise_pattern = \"per_frame\"\nradiance_cache = 0";
+    let noisy = "max_depth = 3\nshading = \"path_traced\"\nspp = 1\ndenoise = false\nnoise_pattern = \"per_frame\"\nradiance_cache = 0";
     let plan = Plan::resolve(&plane_scene(&dir, true, noisy), &Overrides::default()).unwrap();
     let r = measure(&plan, &opts()).unwrap();
     println!("noisy lamp: {r:?}");

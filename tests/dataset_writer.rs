@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use evblur_tests::{python_with, temp_dir};
 use simulator::dataset::check::{check_dataset, CheckOptions, EventsUnit, TestViewPolicy};
-use simulator::dataset::{write_dataset, DatasetError, Overrides, Plan, RunOptions};
+use simulator::dataset::{write_dataset, DatasetError, Overrides, Plan, RunOptions, Shading};
 use simulator::npy::{read_npy, read_npz};
 
 /// The Cornell box of `scenes/cornell` with a short fast orbit and a tiny dataset table.
@@ -201,9 +201,15 @@ fn rerun_is_a_noop_and_other_settings_conflict() {
 
 #[test]
 fn an_interrupted_run_resumes_to_the_same_bytes() {
-    let dir = temp_dir("dataset", "resume");
+    for shading in [Shading::SurfaceCache, Shading::PathTraced] {
+        resumes_to_the_same_bytes(shading);
+    }
+}
+
+fn resumes_to_the_same_bytes(shading: Shading) {
+    let dir = temp_dir("dataset", &format!("resume-{shading:?}"));
     let toml = tiny_scene(&dir);
-    let p = plan(&toml);
+    let p = Plan::resolve(&toml, &Overrides { shading: Some(shading), ..Overrides::default() }).unwrap();
     let (a, b) = (dir.join("a"), dir.join("b"));
     write_dataset(&p, &opts(&a, None)).unwrap();
 
@@ -219,17 +225,22 @@ fn an_interrupted_run_resumes_to_the_same_bytes() {
     assert!(!b.join("dataset.toml").exists(), "no manifest before the end");
     let s = write_dataset(&p, &opts(&b, None)).unwrap();
     assert_eq!((s.frames_rendered, s.sharp_rendered), (70, 9), "resumes after the 50 cached frames");
-    // the temporal window of frame 50 needs the `radius` frames before it again (not their
-    // filtered results)
-    assert_eq!(s.window_renders, p.config.temporal_radius as usize, "{s:?}");
-    assert!(s.window_renders > 0);
+    if shading == Shading::PathTraced {
+        // the temporal window of frame 50 needs the `radius` frames before it again (not their
+        // filtered results)
+        assert_eq!(s.window_renders, p.config.temporal_radius as usize, "{s:?}");
+        assert!(s.window_renders > 0);
+    } else {
+        assert_eq!(s.window_renders, 0, "surface-cache frames have no temporal window: {s:?}");
+    }
     assert_same_files(&a, &b);
 
     // a shared frame cache: an exposure or threshold change re-renders nothing but the sharp
     // views it moves (none here: view times do not depend on the exposure when first_view_ms is set)
     let cache = dir.join("cache");
     write_dataset(&p, &opts(&dir.join("c"), Some(cache.clone()))).unwrap();
-    let swept = Overrides { exposure_ms: Some(4.0), threshold: Some(0.3), ..Overrides::default() };
+    let swept =
+        Overrides { shading: Some(shading), exposure_ms: Some(4.0), threshold: Some(0.3), ..Overrides::default() };
     let p2 = Plan::resolve(&toml, &swept).unwrap();
     let s = write_dataset(&p2, &opts(&dir.join("d"), Some(cache))).unwrap();
     assert_eq!((s.frames_rendered, s.sharp_rendered), (0, 0));
@@ -311,6 +322,7 @@ fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
     let opts = NoiseOptions { frames: 12, factor: 4, ..NoiseOptions::default() };
     let run_radius = |pattern, denoise, radius| {
         let o = Overrides {
+            shading: Some(Shading::PathTraced),
             noise_pattern: Some(pattern),
             denoise: Some(denoise),
             temporal_radius: Some(radius),
@@ -393,9 +405,14 @@ fn sweep_overrides_reach_the_plan_and_a_shared_frame_cache_skips_rendering() {
 
     // the temporal window's stride shapes the frames (as used: at most the radius)
     let stride = |s: u32, r: u32| {
-        over(Overrides { temporal_stride: Some(s), temporal_radius: Some(r), ..Overrides::default() })
-            .unwrap()
-            .render_key
+        over(Overrides {
+            shading: Some(Shading::PathTraced),
+            temporal_stride: Some(s),
+            temporal_radius: Some(r),
+            ..Overrides::default()
+        })
+        .unwrap()
+        .render_key
     };
     assert_ne!(stride(1, 4), stride(2, 4));
     assert_eq!(stride(4, 4), stride(9, 4));

@@ -217,19 +217,19 @@ pub struct DatasetConfig {
     /// units; 0 = the scene's bounding-box diagonal over 512).
     pub surface_spacing: f32,
     /// With `shading = "surface_cache"`: paths per glossy-grid point (`glossy_stride` > 0,
-    /// lobes of GGX alpha >= 0.05), and per triangle and block of pixels (`glossy_block`) on
+    /// lobes of GGX alpha >= 0.1), and per triangle and block of pixels (`glossy_block`) on
     /// the glossy surfaces that trace their reflection in every frame (count, >= 1; the same
     /// random numbers at a pixel in every frame). Factory at 300x200, stride 8: pairs 0.955 of
     /// the ceiling at 64, 0.957 at 128.
     pub glossy_paths: u32,
     /// With `shading = "surface_cache"`: pixels on a side of the blocks whose traced glossy
     /// samples share their `glossy_paths` paths (1..=16): the whole block for rough lobes
-    /// (alpha >= 0.2), half of it for medium ones, one pixel for sharp ones (alpha < 0.05,
-    /// the only ones traced with the default `glossy_stride`). Factory at 300x200 with traced
+    /// (alpha >= 0.2), half of it for medium ones, one pixel for sharp ones (alpha < 0.05;
+    /// with the default `glossy_stride` only lobes below alpha 0.1 are traced). Factory at 300x200 with traced
     /// glossy paths (`glossy_stride = 0`): pairs 0.926 of the ceiling at 1, 0.898 at 4.
     pub glossy_block: u32,
     /// With `shading = "surface_cache"`: frames between the keyframes of the camera path whose
-    /// glossy grids rough glossy lobes (GGX alpha >= 0.05) read (0 = none: every glossy sample
+    /// glossy grids rough glossy lobes (GGX alpha >= 0.1) read (0 = none: every glossy sample
     /// traces its paths; at most 100000). Per keyframe and visible glossy triangle side, a
     /// grid at the surface cache's spacing holds the light reflected towards that keyframe's
     /// camera from `glossy_paths` paths per point; a frame blends the two keyframes around it.

@@ -67,8 +67,10 @@ const GLOSSY_GRID_SALT: u64 = 0x6c05_5e00_0000_0002;
 
 /// GGX alpha from which a glossy sample reads the keyframes' glossy grids (with
 /// [`RenderSettings::glossy_stride`] > 0) instead of tracing paths: sharper lobes reflect
-/// detail finer than the grids.
-pub const GLOSSY_GRID_ALPHA: f32 = 0.05;
+/// detail finer than the grids. At 0.05 trolley's rails (alpha 0.0625) read the grids and its
+/// windows lose (300x200, of the ceiling: 1 ms 0.896, 24 ms 0.952); at 0.1 they trace (0.944,
+/// 0.968), and factory scores the same or better (pairs 0.955 -> 0.960).
+pub const GLOSSY_GRID_ALPHA: f32 = 0.1;
 
 /// Most cells along either axis of a shadow grid.
 pub const MAX_SHADOW_STEPS: u32 = 2048;

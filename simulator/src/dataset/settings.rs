@@ -241,6 +241,19 @@ pub struct DatasetConfig {
 }
 
 impl DatasetConfig {
+    /// How the frames are made, for messages: "surface cache, 32 camera samples, glossy
+    /// keyframes every 32 frames" or "path traced, 2 spp, denoise true".
+    pub fn frames_summary(&self) -> String {
+        match self.shading {
+            Shading::SurfaceCache => format!(
+                "surface cache, {} camera samples, glossy keyframes every {} frames",
+                self.feature_spp.max(self.spp),
+                self.glossy_stride
+            ),
+            Shading::PathTraced => format!("path traced, {} spp, denoise {}", self.spp, self.denoise),
+        }
+    }
+
     /// The temporal window's stride as used: `temporal_stride`, at most `temporal_radius` (and
     /// 1 without a window).
     pub fn window_stride(&self) -> u32 {

@@ -618,7 +618,7 @@ fn surface_cache_glossy_grids_keep_the_mean_ignore_thread_count_and_blend_keyfra
     let path = std::sync::Arc::new((0..5).map(eye).collect::<Vec<_>>());
     let at = |k: usize| Camera::look_at(eye(k), Vec3::new(0.2, -0.5, -0.3), Vec3::Y, 1.3);
     let st = RenderSettings {
-        max_depth: 3,
+        max_depth: 6,
         feature_spp: 16,
         radiance_cache: 16,
         surface_paths: 32,
@@ -639,11 +639,27 @@ fn surface_cache_glossy_grids_keep_the_mean_ignore_thread_count_and_blend_keyfra
         let truth = r.render(&RenderSettings { spp: 512, camera_path: None, ..sk.clone() }, None);
         let (m, t) = (two.mean(), truth.mean());
         assert!((m - t).abs().max_element() < 0.04 * t.max_element(), "frame {k}: mean {m} vs full paths {t}");
-        // the box's pixels (brighter than traced paths would leave them without the grids'
-        // reflection: metal has no diffuse lobe)
+        // the pixels that see only the metal box (the last 12 triangles), whose light is all
+        // glossy: their mean against full paths and against traced glossy paths
+        let first_box = scene.mesh.len() as u32 - 12;
+        let on_box = |i: usize| {
+            let (x, y) = ((i % sk.width as usize) as u32, (i / sk.width as usize) as u32);
+            (0..16).all(|j| vis.prim(x, y, j).is_some_and(|p| p >= first_box))
+        };
+        let box_mean = |img: &crate::render::film::Image| {
+            let px: Vec<Vec3> = (0..img.pixels.len()).filter(|&i| on_box(i)).map(|i| img.pixels[i]).collect();
+            (px.iter().copied().sum::<Vec3>() / px.len() as f32, px.len())
+        };
         let traced = r.render_surface(&RenderSettings { glossy_stride: 0, ..sk.clone() }, &vis);
-        let diff = rms(&two.pixels, &traced.pixels) / t.x as f64;
-        assert!(diff < 0.1, "frame {k}: grids vs traced glossy paths, relative RMS {diff}");
+        let ((g, n), (b, _), (tr, _)) = (box_mean(&two), box_mean(&truth), box_mean(&traced));
+        assert!(n >= 20, "frame {k}: {n} pixels on the box");
+        // the grids hold what the traced glossy paths estimate; both read the surface grid at
+        // their second vertex, whose light has one bounce more than max_depth allows there
+        // (known, see docs/fidelity.md): 8% above full paths at max depth 6 (41% at 3)
+        for (name, other, tol) in [("traced glossy paths", tr, 0.03), ("full paths", b, 0.12)] {
+            let rel = (g - other).abs().max_element() / other.max_element();
+            assert!(rel < tol, "frame {k}: the box's mean {g} vs {name} {other} ({n} pixels; full {b}, traced {tr})");
+        }
     }
     // keyframes 0 and 2 are held; a frame on keyframe 2 reads it alone, so rendering frame 2
     // with a stride of 2 and of 1 (keyframes 2 and 3, weight 0 on 3) gives the same bytes

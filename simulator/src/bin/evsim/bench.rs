@@ -233,18 +233,6 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
     Ok(())
 }
 
-/// How a dataset's frames are made, for the benches' headers.
-fn shading_summary(c: &simulator::dataset::DatasetConfig) -> String {
-    match c.shading {
-        simulator::dataset::settings::Shading::SurfaceCache => format!(
-            "surface cache: {} camera samples per pixel, glossy keyframes every {} frames",
-            c.feature_spp.max(c.spp),
-            c.glossy_stride
-        ),
-        simulator::dataset::settings::Shading::PathTraced => format!("path traced: {} spp", c.spp),
-    }
-}
-
 /// Samples per pixel of the Mitsuba ground truth the errors are measured against.
 const GT_SPP: u32 = 1024;
 
@@ -525,7 +513,7 @@ fn dataset_bench(b: &DatasetBench) -> Result<()> {
         c.width,
         c.height,
         c.fps,
-        shading_summary(c),
+        c.frames_summary(),
         plan.views.len(),
         plan.sharp_source(),
         rayon::current_num_threads()

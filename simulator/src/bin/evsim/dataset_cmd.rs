@@ -190,13 +190,13 @@ pub fn run(args: &DatasetArgs) -> Result<()> {
     let c = &plan.config;
     let sharp = (0..plan.views.len()).filter(|&i| plan.is_sharp(i)).count();
     eprintln!(
-        "{}: {} frames {}x{} at {} FPS, {} spp; {} views ({} sharp; sharp images from {}), exposure {} ms, threshold {}/{}",
+        "{}: {} frames {}x{} at {} FPS ({}); {} views ({} sharp; sharp images from {}), exposure {} ms, threshold {}/{}",
         args.scene.display(),
         plan.clock.n_frames,
         c.width,
         c.height,
         c.fps,
-        c.spp,
+        c.frames_summary(),
         plan.views.len(),
         sharp,
         plan.sharp_source(),
@@ -497,14 +497,7 @@ pub fn run_fidelity(args: &FidelityArgs) -> Result<()> {
     println!(
         "time: dataset frames {:.2} s per frame ({}), references {:.1} s ({} of {} frames from the cache)",
         r.dataset_time.as_secs_f64() / r.frames as f64,
-        match c.shading {
-            simulator::dataset::Shading::SurfaceCache => format!(
-                "surface cache, {} camera samples, glossy keyframes every {} frames",
-                c.feature_spp.max(c.spp),
-                c.glossy_stride
-            ),
-            simulator::dataset::Shading::PathTraced => format!("path traced, {} spp, denoise {}", c.spp, c.denoise),
-        },
+        c.frames_summary(),
         r.reference_time.as_secs_f64(),
         r.reference_cached,
         r.frames * if r.ceiling.is_some() { 2 } else { 1 }

@@ -302,6 +302,8 @@ fn bad_settings_name_the_field() {
     check(&|t| t.split("[trajectory]").next().unwrap().to_string(), &["trajectory", "missing"]);
     check(&|t| t.replace("sharp_spp = 4", "sharp_spp = 1"), &["dataset.sharp_spp"]);
     check(&|t| t.replace("spp = 2\n", "spp = 2\ntemporal_stride = 0\n"), &["dataset.temporal_stride", "1..=64"]);
+    check(&|t| t.replace("spp = 2\n", "spp = 2\nglossy_grid_alpha = 1.5\n"), &["dataset.glossy_grid_alpha", "0..=1"]);
+    check(&|t| t.replace("spp = 2\n", "spp = 2\nglossy_grid_alpha = nan\n"), &["dataset.glossy_grid_alpha"]);
     std::fs::write(&toml, &text).unwrap();
     let e = Plan::resolve(&toml, &Overrides { threshold: Some(-0.1), ..Overrides::default() }).unwrap_err();
     assert!(e.to_string().contains("events") && e.to_string().contains("c_pos"), "{e}");

@@ -38,8 +38,13 @@ pub const PIPELINE_VERSION: u32 = 10;
 
 /// Version of the surface-cache frames ([`super::Shading::SurfaceCache`]), in their render key
 /// alone (path-traced frames keep theirs): 2 = grids over triangles in their plane, glossy
-/// streams the same in every frame; 3 = glossy blocks sized by the lobe's width, glossy grids.
-pub const SURFACE_VERSION: u32 = 3;
+/// streams the same in every frame; 3 = glossy blocks sized by the lobe's width, glossy grids;
+/// 4 = glossy paths end in the radiance cache's second-vertex lattice (no extra bounce).
+pub const SURFACE_VERSION: u32 = 4;
+
+/// The surface-cache part of a render key: surface version, paths per point, spacing bits,
+/// camera samples, glossy paths, glossy block, glossy stride, glossy-grid alpha bits.
+type SurfaceKey = (u32, u32, u32, u32, u32, u32, u32, u32);
 
 /// Everything a dataset run needs, resolved and checked.
 #[derive(Debug)]
@@ -117,9 +122,10 @@ struct RenderIdentity<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     cache_vertex: Option<u32>,
     /// Only written for surface-cache frames (surface version, paths per point, spacing bits,
-    /// camera samples, glossy paths, glossy block, glossy stride), so that the keys of path-traced frames are those of earlier versions.
+    /// camera samples, glossy paths, glossy block, glossy stride, glossy-grid alpha bits), so
+    /// that the keys of path-traced frames are those of earlier versions.
     #[serde(skip_serializing_if = "Option::is_none")]
-    surface: Option<(u32, u32, u32, u32, u32, u32, u32)>,
+    surface: Option<SurfaceKey>,
     bvh: crate::render::accel::BvhPreset,
     trajectory: &'a TrajectoryConfig,
 }
@@ -288,6 +294,7 @@ impl Plan {
                     config.glossy_paths,
                     config.glossy_block,
                     config.glossy_stride,
+                    config.glossy_grid_alpha.to_bits(),
                 )),
                 bvh: config.bvh,
                 trajectory: &trajectory_config,
@@ -415,6 +422,15 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
         return bad(
             "dataset.glossy_stride",
             format!("{} must be at most 100000 (frames between glossy keyframes; 0 = none)", d.glossy_stride),
+        );
+    }
+    if !(0.0..=1.0).contains(&d.glossy_grid_alpha) {
+        return bad(
+            "dataset.glossy_grid_alpha",
+            format!(
+                "{} must be a GGX alpha in 0..=1 (glossy lobes from it read the glossy grids; default 0.1)",
+                d.glossy_grid_alpha
+            ),
         );
     }
     if d.glossy_paths == 0 {

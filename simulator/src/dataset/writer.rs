@@ -182,6 +182,7 @@ pub fn render_settings(plan: &Plan, pose: &Pose, k: usize, sharp: bool) -> Rende
     s.glossy_paths = c.glossy_paths;
     s.glossy_block = c.glossy_block;
     s.glossy_stride = c.glossy_stride;
+    s.glossy_grid_alpha = c.glossy_grid_alpha;
     s.camera_path = Some(plan.camera_path.clone());
     if sharp {
         s.spp = plan.sharp_spp.unwrap_or(c.spp);

@@ -235,24 +235,16 @@ impl Bsdf {
     /// `eval` and mixed `pdf` for a given half vector `h` (the sampled microfacet normal when
     /// called from `sample`, `normalize(wo + wi)` otherwise). Both zero below the surface.
     fn eval_pdf(&self, wo: Vec3, wi: Vec3, h: Vec3) -> (Vec3, f32) {
-        self.eval_maybe_pdf::<true>(wo, wi, h)
-    }
-
-    /// [`Bsdf::eval_pdf`]; with `PDF` false the density is not computed (0) and the value is
-    /// the same, bit for bit.
-    #[inline(always)]
-    fn eval_maybe_pdf<const PDF: bool>(&self, wo: Vec3, wi: Vec3, h: Vec3) -> (Vec3, f32) {
         if wo.z <= 0.0 || wi.z <= 0.0 || wo.z.is_nan() || wi.z.is_nan() || !h.is_finite() {
             return (Vec3::ZERO, 0.0);
         }
-        let p_spec = if PDF { self.specular_share(wo) } else { 0.0 };
+        let p_spec = self.specular_share(wo);
         // the angle in the Fresnel terms: v.h (= wi.h by construction of h)
         let c = wo.dot(h).clamp(0.0, 1.0);
         // diffuse lobe: (1 - m)(1 - s F_d) base / pi * cos(theta_i), cosine-hemisphere density
         let mut value = self.diffuse_albedo(c) * (FRAC_1_PI * wi.z);
-        let mut pdf = if PDF { (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z) } else { 0.0 };
+        let mut pdf = (1.0 - p_spec) * cosine_hemisphere_pdf(wi.z);
         // specular lobe: F D G1(wo) G1(wi) / (4 wo.z wi.z) * wi.z = F D (G1(wo)/wo.z) G1(wi) / 4
-        let mut spec_density = 0.0;
         if self.has_specular() {
             let d = self.d(h);
             let g1o_cos = self.g1_over_cos(wo);
@@ -260,14 +252,9 @@ impl Bsdf {
             value += self.fresnel(c) * (0.25 * d * g1o_cos * g1i);
             // visible-normal density D_wo(h) = G1(wo) (wo.h) D(h) / wo.z, times the reflection
             // Jacobian 1 / (4 wo.h): the wo.h cancels
-            spec_density = 0.25 * d * g1o_cos;
-            if PDF {
-                pdf += p_spec * spec_density;
-            }
+            pdf += p_spec * 0.25 * d * g1o_cos;
         }
-        // (the density is finite exactly when the specular lobe's is: p_spec and the cosine
-        // term are)
-        if !value.is_finite() || !spec_density.is_finite() || !pdf.is_finite() {
+        if !value.is_finite() || !pdf.is_finite() {
             return (Vec3::ZERO, 0.0);
         }
         (value, pdf)
@@ -284,7 +271,7 @@ impl Bsdf {
     /// `f(wo, wi) * cos(theta_i)`; zero unless `wo.z > 0 && wi.z > 0`.
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> Vec3 {
         match Self::half_vector(wo, wi) {
-            Some(h) => self.eval_maybe_pdf::<false>(wo, wi, h).0,
+            Some(h) => self.eval_pdf(wo, wi, h).0,
             None => Vec3::ZERO,
         }
     }
@@ -535,7 +522,7 @@ mod tests {
                     assert!(s.wi.z > 0.0 && (s.wi.length() - 1.0).abs() < 1e-4, "{name}: {s:?}");
                     let pdf = b.pdf(wo, s.wi);
                     let f = b.eval(wo, s.wi);
-                    // eval skips the density, with the same value bit for bit
+                    // eval is eval_and_pdf's value, bit for bit
                     assert_eq!((f, pdf), b.eval_and_pdf(wo, s.wi), "{name} theta={theta}");
                     assert!((pdf - s.pdf).abs() <= 1e-3 * s.pdf, "{name} theta={theta}: pdf {pdf} vs {s:?}");
                     let w = f / pdf;

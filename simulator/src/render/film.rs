@@ -99,6 +99,10 @@ pub struct RenderSettings {
     /// Frames between the keyframes whose glossy grids a surface-cache render reads on rough
     /// glossy lobes (0 = none: every glossy sample traces paths).
     pub glossy_stride: u32,
+    /// GGX alpha from which a glossy lobe reads the glossy grids (with `glossy_stride` > 0);
+    /// sharper lobes trace paths in every frame (default
+    /// [`crate::render::integrator::surface::GLOSSY_GRID_ALPHA`]).
+    pub glossy_grid_alpha: f32,
     /// Camera positions of the sequence a surface-cache render belongs to: its shadow
     /// grids are as fine as the nearest of them needs (`None`: this frame's camera alone).
     pub camera_path: Option<std::sync::Arc<Vec<glam::Vec3>>>,
@@ -134,6 +138,7 @@ impl RenderSettings {
             glossy_paths: 64,
             glossy_block: 1,
             glossy_stride: 0,
+            glossy_grid_alpha: crate::render::integrator::surface::GLOSSY_GRID_ALPHA,
             camera_path: None,
             adaptive_variance: 0.1,
         }

@@ -28,7 +28,7 @@
 //! per keyframe and triangle side (the surface grids' layout and spacing) holds the light the
 //! point's BSDF reflects towards that keyframe's camera, from `glossy_paths` paths per point
 //! whose random streams are keyed by the point alone: neighbouring keyframes differ by the
-//! change of view, not by noise. A sample on a lobe of GGX alpha >= [`GLOSSY_GRID_ALPHA`]
+//! change of view, not by noise. A sample on a lobe of GGX alpha >= [`RenderSettings::glossy_grid_alpha`]
 //! blends the two keyframes around its frame (linearly along the path) and takes the result
 //! per unit reflectance hint times its own hint.
 //!
@@ -37,7 +37,7 @@
 //! of pixels ([`RenderSettings::glossy_block`] on a side for rough lobes, see [`lobe_block`])
 //! and spread over their hits. A path, here or in a glossy grid, takes one light sample and
 //! one BSDF sample (multiple importance sampling), whose hit adds its emission and the light
-//! it reflects as a diffuse sample would. A block's glossy paths take the same random numbers
+//! it reflects within the path's remaining segments (traced on from there). A block's glossy paths take the same random numbers
 //! in every frame, so their error drifts with the view instead of flickering. No image filter
 //! follows.
 
@@ -46,7 +46,7 @@ use std::sync::{Arc, OnceLock};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::{offset_origin, FillSpec, PathMode, Renderer, SurfaceHit};
+use super::{offset_origin, FillSpec, FirstHit, PathMode, Renderer, SurfaceHit};
 use crate::render::accel::Hit;
 use crate::render::bsdf::Bsdf;
 use crate::render::film::{Image, RenderSettings};
@@ -65,11 +65,11 @@ const GLOSSY_SALT: u64 = 0x6c05_5e00_0000_0001;
 /// Salt of the glossy grids' random streams.
 const GLOSSY_GRID_SALT: u64 = 0x6c05_5e00_0000_0002;
 
-/// GGX alpha from which a glossy sample reads the keyframes' glossy grids (with
-/// [`RenderSettings::glossy_stride`] > 0) instead of tracing paths: sharper lobes reflect
-/// detail finer than the grids. At 0.05 trolley's rails (alpha 0.0625) read the grids and its
-/// windows lose (300x200, of the ceiling: 1 ms 0.896, 24 ms 0.952); at 0.1 they trace (0.944,
-/// 0.968), and factory scores the same or better (pairs 0.955 -> 0.960).
+/// Default [`RenderSettings::glossy_grid_alpha`]: the GGX alpha from which a glossy sample
+/// reads the keyframes' glossy grids (with [`RenderSettings::glossy_stride`] > 0) instead of
+/// tracing paths: sharper lobes reflect detail finer than the grids. At 0.05 trolley's rails
+/// (alpha 0.0625) read the grids and its windows lose (300x200, of the ceiling: 1 ms 0.896,
+/// 24 ms 0.952); at 0.1 they trace (0.944, 0.968).
 pub const GLOSSY_GRID_ALPHA: f32 = 0.1;
 
 /// Most cells along either axis of a shadow grid.
@@ -83,6 +83,22 @@ struct Sample {
     wo: Vec3,
     /// Index of its pixel in the band of rows being rendered.
     pixel: usize,
+}
+
+/// The settings of the path a glossy path traces on from its second vertex
+/// ([`Renderer::second_vertex_light`]): one segment shorter than the camera's.
+struct PathRest(RenderSettings);
+
+impl PathRest {
+    /// For the frames of `s` (`max_depth` >= 3 where it is used).
+    fn new(s: &RenderSettings) -> PathRest {
+        PathRest(RenderSettings {
+            max_depth: s.max_depth.saturating_sub(1),
+            rr_depth: s.rr_depth.saturating_sub(1).max(1),
+            camera_path: None,
+            ..s.clone()
+        })
+    }
 }
 
 /// Side of the pixel blocks whose glossy samples share paths, for a lobe of GGX `alpha` when
@@ -481,7 +497,7 @@ impl Renderer<'_> {
                     }
                     if !samples.is_empty() {
                         let block_index = by as u64 * w.div_ceil(block) as u64 + bx as u64;
-                        self.glossy_samples(s, block_index, &samples, &surface, cache, &mut band);
+                        self.glossy_samples(s, block_index, &samples, &mut band);
                     }
                 }
                 let n = vis.samples.max(1) as f32;
@@ -533,11 +549,11 @@ impl Renderer<'_> {
                 // glossy: the delta lights here; the rest from the keyframes' glossy grids
                 // (rough lobes) or traced once for the triangle's samples
                 sum += le + self.delta_light(&hit, &sh, &bsdf, wo, surface);
-                if !glossy.is_empty() && bsdf.alpha >= GLOSSY_GRID_ALPHA {
+                if !glossy.is_empty() && bsdf.alpha >= s.glossy_grid_alpha {
                     let side = usize::from(!sh.front);
                     let mut g = Vec3::ZERO;
                     for (frame, w) in glossy {
-                        let fill = || self.fill_glossy(s, surface, cache, hit.prim, sh.front, frame);
+                        let fill = || self.fill_glossy(s, surface, hit.prim, sh.front, frame);
                         g += frame.sides[hit.prim as usize][side].get_or_init(fill).at(sh.p) * *w;
                     }
                     sum += bsdf.albedo_hint() * g;
@@ -604,19 +620,11 @@ impl Renderer<'_> {
 
     /// The glossy samples of a block of pixels ([`RenderSettings::glossy_block`] on a side): per triangle,
     /// `glossy_paths` paths spread over that triangle's samples (the reflection of the block's
-    /// part of the triangle), each ending at its second vertex in the grids; their reflected
+    /// part of the triangle), each going on from its second vertex as [`Renderer::second_vertex_light`] says; their reflected
     /// light (but the delta lights') per unit reflectance hint, times each sample's own hint,
     /// is added to the sample's pixel in `band`. The random numbers are keyed by the block
     /// alone: the same in every frame.
-    fn glossy_samples(
-        &self,
-        s: &RenderSettings,
-        block_index: u64,
-        samples: &[Sample],
-        surface: &SurfaceCache,
-        cache: Option<&RadianceCache>,
-        band: &mut [Vec3],
-    ) {
+    fn glossy_samples(&self, s: &RenderSettings, block_index: u64, samples: &[Sample], band: &mut [Vec3]) {
         let key = pixel_key(s.seed ^ GLOSSY_SALT, block_index, 0);
         let block = s.glossy_block.clamp(1, 16) as usize;
         let w = s.width as usize;
@@ -634,6 +642,7 @@ impl Renderer<'_> {
             }
         }
         let paths = s.glossy_paths.max(1);
+        let rest = PathRest::new(s);
         let mut group: Vec<&Sample> = Vec::new();
         for (g, &id) in groups.iter().enumerate() {
             group.clear();
@@ -642,7 +651,7 @@ impl Renderer<'_> {
             for j in 0..paths {
                 let smp = group[j as usize % group.len()];
                 let mut rng = SampleStream::new(s.sampler, key, (g as u32) << 16 | j);
-                let l = self.glossy_path(s, smp, surface, cache, &mut rng);
+                let l = self.glossy_path(s, smp, &rest, &mut rng);
                 let hint = smp.bsdf.albedo_hint().max(Vec3::splat(super::MIN_REFLECTANCE));
                 if l.is_finite() {
                     refl += l / hint;
@@ -658,15 +667,8 @@ impl Renderer<'_> {
     /// One path of light reflected at the glossy sample `smp`, but its delta lights' (the
     /// caller adds those per sample): one light sample and one BSDF sample (multiple importance
     /// sampling, power heuristic), the BSDF sample's hit adding its emission and, with
-    /// `max_depth` 3 or more, what it reflects from the grids.
-    fn glossy_path(
-        &self,
-        s: &RenderSettings,
-        smp: &Sample,
-        surface: &SurfaceCache,
-        cache: Option<&RadianceCache>,
-        rng: &mut SampleStream,
-    ) -> Vec3 {
+    /// `max_depth` 3 or more, what it reflects ([`Renderer::second_vertex_light`]).
+    fn glossy_path(&self, s: &RenderSettings, smp: &Sample, rest: &PathRest, rng: &mut SampleStream) -> Vec3 {
         let scene = self.scene;
         let (sh, bsdf, wo) = (&smp.sh, &smp.bsdf, smp.wo);
         let ng_side = if sh.front { sh.ng } else { -sh.ng };
@@ -702,11 +704,26 @@ impl Renderer<'_> {
             l += bs.weight * le2 * w;
         }
         if s.max_depth >= 3 {
-            let bsdf2 = self.bsdf(hit2.prim, sh2.uv, None);
-            let wo2 = sh2.frame.to_local(-wi);
-            l += bs.weight * self.diffuse_light(s, &hit2, &sh2, &bsdf2, wo2, surface, cache);
+            l += bs.weight * self.second_vertex_light(rest, p_off, wi, &hit2, rng);
         }
         l
+    }
+
+    /// The light a camera path's second vertex `hit` (reached from `o` along `d`) reflects
+    /// back along the path, within the segments `max_depth` leaves it: a traced path, one
+    /// segment shorter than the camera's, with a shadow ray per delta light. (The surface
+    /// grids hold a first vertex's light, one bounce more; the radiance cache's lattice blurs
+    /// the shadows; the shadow grids would be laid at pixel density over every surface a
+    /// reflection shows.)
+    fn second_vertex_light(&self, rest: &PathRest, o: Vec3, d: Vec3, hit: &Hit, rng: &mut SampleStream) -> Vec3 {
+        // its emission there is the caller's (weighed against its light sample)
+        let mut first = FirstHit::new(-d);
+        let path = self.li_first(o, d, &rest.0, rng, &mut first, None, Some(Some(*hit)), None, PathMode::Full);
+        if path.is_finite() {
+            (path - first.emission).max(Vec3::ZERO)
+        } else {
+            Vec3::ZERO
+        }
     }
 
     /// Compute triangle `prim`'s `front` (or back) side's surface grid: per point, the
@@ -742,7 +759,6 @@ impl Renderer<'_> {
         &self,
         s: &RenderSettings,
         surface: &SurfaceCache,
-        cache: Option<&RadianceCache>,
         prim: u32,
         front: bool,
         frame: &GlossyFrame,
@@ -753,6 +769,7 @@ impl Renderer<'_> {
         };
         let p = surface.params;
         let side = prim as u64 * 2 + u64::from(!front);
+        let rest = PathRest::new(s);
         Grid::over(corners, p.spacing, MAX_SURFACE_CELLS, |k, q| {
             let origin = offset_origin(q, n);
             let Some(hit) = self.accel.intersect_triangle(prim, origin, -n, 0.0, f32::INFINITY) else {
@@ -771,7 +788,7 @@ impl Renderer<'_> {
             let mut refl = Vec3::ZERO;
             for j in 0..frame.paths {
                 let mut rng = SampleStream::new(p.path.sampler, key, j);
-                let l = self.glossy_path(s, &smp, surface, cache, &mut rng);
+                let l = self.glossy_path(s, &smp, &rest, &mut rng);
                 if l.is_finite() {
                     refl += l / hint;
                 }

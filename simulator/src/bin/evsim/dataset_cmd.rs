@@ -126,6 +126,10 @@ pub struct OverrideArgs {
     /// glossy lobes read (0 = none: traced paths).
     #[arg(long)]
     pub glossy_stride: Option<u32>,
+    /// Override [dataset] glossy_grid_alpha: GGX alpha from which glossy lobes read the
+    /// glossy grids (sharper ones trace paths in every frame).
+    #[arg(long)]
+    pub glossy_grid_alpha: Option<f32>,
     /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
     #[arg(long)]
     pub threshold_sigma: Option<f32>,
@@ -174,6 +178,7 @@ impl OverrideArgs {
             glossy_paths: self.glossy_paths,
             glossy_block: self.glossy_block,
             glossy_stride: self.glossy_stride,
+            glossy_grid_alpha: self.glossy_grid_alpha,
             threshold_sigma: self.threshold_sigma,
             leak_rate_hz: self.leak_rate_hz,
             shot_noise_rate_hz: self.shot_noise_rate_hz,

@@ -201,6 +201,7 @@ pub fn settings(args: &RenderArgs, camera: Camera) -> Result<RenderSettings> {
         glossy_paths: 64,
         glossy_block: 1,
         glossy_stride: 0,
+        glossy_grid_alpha: simulator::render::integrator::surface::GLOSSY_GRID_ALPHA,
         camera_path: None,
         adaptive_variance: 0.1,
     })

@@ -226,7 +226,8 @@ pub struct DatasetConfig {
     /// With `shading = "surface_cache"`: pixels on a side of the blocks whose traced glossy
     /// samples share their `glossy_paths` paths (1..=16): the whole block for rough lobes
     /// (alpha >= 0.2), half of it for medium ones, one pixel for sharp ones (alpha < 0.05;
-    /// with the default `glossy_stride` only lobes below alpha 0.1 are traced). Factory at 300x200 with traced
+    /// with `glossy_stride` > 0 only lobes below `glossy_grid_alpha` are traced). Factory at
+    /// 300x200 with traced
     /// glossy paths (`glossy_stride = 0`): pairs 0.926 of the ceiling at 1, 0.898 at 4.
     pub glossy_block: u32,
     /// With `shading = "surface_cache"`: frames between the keyframes of the camera path whose
@@ -242,8 +243,8 @@ pub struct DatasetConfig {
     /// With `shading = "surface_cache"` and `glossy_stride` > 0: the GGX alpha from which
     /// glossy lobes read the glossy grids (0..=1, default 0.1); sharper lobes trace
     /// `glossy_paths` paths in every frame, which costs: factory 600x400 (dielectric highlights
-    /// at grazing angles, alpha 0.06 to 0.09) takes about 2.1 s a frame at 0.1 and 1.1 s at
-    /// 0.05, for the same fidelity (pairs 0.960 vs 0.955 of the ceiling at 300x200), so its
+    /// at grazing angles, alpha 0.06 to 0.09) takes about 2.1 s a frame at 0.1 and 0.9 s at
+    /// 0.05, for the same fidelity (pairs 0.962 vs 0.961 of the ceiling at 300x200), so its
     /// scene sets 0.05. Trolley's metal rails (alpha 0.0625) need 0.1: at 0.05 its 1 ms
     /// windows drop from 0.944 to 0.896 of the ceiling.
     pub glossy_grid_alpha: f32,

@@ -28,18 +28,18 @@
 //! per keyframe and triangle side (the surface grids' layout and spacing) holds the light the
 //! point's BSDF reflects towards that keyframe's camera, from `glossy_paths` paths per point
 //! whose random streams are keyed by the point alone: neighbouring keyframes differ by the
-//! change of view, not by noise. A sample on a lobe of GGX alpha >= [`RenderSettings::glossy_grid_alpha`]
-//! blends the two keyframes around its frame (linearly along the path) and takes the result
-//! per unit reflectance hint times its own hint.
+//! change of view, not by noise. A sample on a lobe of GGX alpha >=
+//! [`RenderSettings::glossy_grid_alpha`] blends the two keyframes around its frame (linearly
+//! along the path) and takes the result per unit reflectance hint times its own hint.
 //!
 //! Sharper lobes (and every glossy sample with `glossy_stride` 0) trace
 //! [`RenderSettings::glossy_paths`] paths shared by the samples on its triangle in its block
 //! of pixels ([`RenderSettings::glossy_block`] on a side for rough lobes, see [`lobe_block`])
 //! and spread over their hits. A path, here or in a glossy grid, takes one light sample and
 //! one BSDF sample (multiple importance sampling), whose hit adds its emission and the light
-//! it reflects within the path's remaining segments (traced on from there). A block's glossy paths take the same random numbers
-//! in every frame, so their error drifts with the view instead of flickering. No image filter
-//! follows.
+//! it reflects within the path's remaining segments (traced on from there). A block's glossy
+//! paths take the same random numbers in every frame, so their error drifts with the view
+//! instead of flickering. No image filter follows.
 
 use std::sync::{Arc, OnceLock};
 
@@ -618,12 +618,12 @@ impl Renderer<'_> {
         l
     }
 
-    /// The glossy samples of a block of pixels ([`RenderSettings::glossy_block`] on a side): per triangle,
-    /// `glossy_paths` paths spread over that triangle's samples (the reflection of the block's
-    /// part of the triangle), each going on from its second vertex as [`Renderer::second_vertex_light`] says; their reflected
-    /// light (but the delta lights') per unit reflectance hint, times each sample's own hint,
-    /// is added to the sample's pixel in `band`. The random numbers are keyed by the block
-    /// alone: the same in every frame.
+    /// The glossy samples of a block of pixels ([`RenderSettings::glossy_block`] on a side):
+    /// per triangle, `glossy_paths` paths spread over that triangle's samples (the reflection of
+    /// the block's part of the triangle), each going on from its second vertex as
+    /// [`Renderer::second_vertex_light`] says; their reflected light (but the delta lights')
+    /// per unit reflectance hint, times each sample's own hint, is added to the sample's pixel
+    /// in `band`. The random numbers are keyed by the block alone: the same in every frame.
     fn glossy_samples(&self, s: &RenderSettings, block_index: u64, samples: &[Sample], band: &mut [Vec3]) {
         let key = pixel_key(s.seed ^ GLOSSY_SALT, block_index, 0);
         let block = s.glossy_block.clamp(1, 16) as usize;

@@ -66,6 +66,23 @@ struct ShadingTri {
     material: u32,
 }
 
+/// What the shading of a hit needs of its triangle alone (see [`Renderer::triangle_numbers`]).
+#[derive(Clone, Copy)]
+struct TriangleNumbers {
+    /// The triangle.
+    prim: u32,
+    /// Its unit geometric normal.
+    ng: Vec3,
+    /// Its edges `v1 - v0` and `v2 - v0`.
+    edges: [Vec3; 2],
+    /// The edges' dot products: e1.e1, e1.e2, e2.e2.
+    gram: [f32; 3],
+    /// The Gram determinant (zero for a degenerate triangle).
+    det: f32,
+    /// The texture coordinate's edges `uv1 - uv0` and `uv2 - uv0`.
+    uv_edges: [Vec2; 2],
+}
+
 /// Everything about a surface hit the shading needs.
 struct SurfaceHit {
     p: Vec3,
@@ -468,13 +485,14 @@ impl<'a> Renderer<'a> {
     /// triangle's plane and the offsets expressed in the triangle's texture coordinates (pbrt's
     /// ray differentials). None where a neighbour ray misses the plane.
     fn uv_footprint(&self, hit: &Hit, sh: &SurfaceHit, origin: Vec3, spread: [Vec3; 2]) -> Option<(Vec2, Vec2)> {
-        let mesh = &self.scene.mesh;
-        let [i0, i1, i2] = mesh.indices[hit.prim as usize];
-        let [p0, p1, p2] = [i0, i1, i2].map(|i| mesh.positions[i as usize]);
-        let [t0, t1, t2] = [i0, i1, i2].map(|i| mesh.uvs[i as usize]);
-        let (e1, e2) = (p1 - p0, p2 - p0);
-        let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-        let det = a11 * a22 - a12 * a12;
+        Self::uv_footprint_on(&self.triangle_numbers(hit), sh, origin, spread)
+    }
+
+    /// [`Renderer::uv_footprint`] with the hit triangle's numbers `tri` (the directions of
+    /// `spread` need not be unit).
+    #[inline]
+    fn uv_footprint_on(tri: &TriangleNumbers, sh: &SurfaceHit, origin: Vec3, spread: [Vec3; 2]) -> Option<(Vec2, Vec2)> {
+        let TriangleNumbers { edges: [e1, e2], gram: [a11, a12, a22], det, uv_edges: [dt1, dt2], .. } = *tri;
         if !(det > 0.0) {
             return None;
         }
@@ -486,10 +504,29 @@ impl<'a> Renderer<'a> {
             let dp = origin + d * t - sh.p;
             let (r1, r2) = (e1.dot(dp), e2.dot(dp));
             let (b1, b2) = ((a22 * r1 - a12 * r2) / det, (a11 * r2 - a12 * r1) / det);
-            (t > 0.0 && cos.abs() > 1e-6).then(|| (t1 - t0) * b1 + (t2 - t0) * b2)
+            // (the angle test: |cos| > 1e-6 for a unit direction)
+            (t > 0.0 && cos * cos > 1e-12 * d.length_squared()).then(|| dt1 * b1 + dt2 * b2)
         });
         let (du, dv) = (du?, dv?);
         (du.is_finite() && dv.is_finite()).then_some((du, dv))
+    }
+
+    /// The numbers of `hit`'s triangle that [`Renderer::surface_on`] and
+    /// [`Renderer::uv_footprint_on`] take: computed once for the samples of a pixel that hit
+    /// the same triangle.
+    #[inline]
+    fn triangle_numbers(&self, hit: &Hit) -> TriangleNumbers {
+        let [e1, e2] = hit.edges;
+        let [t0, t1, t2] = self.shading[hit.prim as usize].uvs;
+        let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        TriangleNumbers {
+            prim: hit.prim,
+            ng: e1.cross(e2).normalize(),
+            edges: hit.edges,
+            gram: [a11, a12, a22],
+            det: a11 * a22 - a12 * a12,
+            uv_edges: [t1 - t0, t2 - t0],
+        }
     }
 
     /// The first hit of a camera ray. `known` is what a visibility buffer says: `Some(Some(p))`
@@ -539,7 +576,12 @@ impl<'a> Renderer<'a> {
 
     /// Interpolated surface data at a hit, with the shading frame facing `-dir`.
     fn surface(&self, hit: &Hit, origin: Vec3, dir: Vec3) -> SurfaceHit {
-        let ng = hit.edges[0].cross(hit.edges[1]).normalize();
+        self.surface_on(hit, hit.edges[0].cross(hit.edges[1]).normalize(), origin, dir)
+    }
+
+    /// [`Renderer::surface`] given the triangle's unit geometric normal `ng`.
+    #[inline]
+    fn surface_on(&self, hit: &Hit, ng: Vec3, origin: Vec3, dir: Vec3) -> SurfaceHit {
         let front = ng.dot(dir) < 0.0;
         let (ns, uv) = self.shading_normal_uv(hit, dir, || ng);
         let p = origin + dir * hit.t;

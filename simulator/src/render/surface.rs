@@ -46,7 +46,7 @@ use std::sync::{Arc, OnceLock};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::{offset_origin, FillSpec, FirstHit, PathMode, Renderer, SurfaceHit};
+use super::{offset_origin, FillSpec, FirstHit, PathMode, Renderer, SurfaceHit, TriangleNumbers};
 use crate::render::accel::Hit;
 use crate::render::bsdf::Bsdf;
 use crate::render::film::{Image, RenderSettings};
@@ -527,17 +527,27 @@ impl Renderer<'_> {
         let scene = self.scene;
         let origin = s.camera.origin();
         let mut sum = Vec3::ZERO;
+        // the camera spread (see `camera_spread`) as offsets of the unnormalised direction,
+        // which is affine in the film point; the footprint does not need unit directions
+        let k = s.texture_filter;
+        let spread_steps = (k > 0.0 && k.is_finite()).then(|| film_rays.steps().map(|d| d * k));
+        // the numbers of the triangle the last sample hit (most of a pixel's samples share one)
+        let mut last: Option<TriangleNumbers> = None;
         for i in 0..vis.samples {
             let c = vis.offset(x, y, i);
             let film = Vec2::new(x as f32 + c.x, y as f32 + c.y);
-            let dir = film_rays.direction(film);
+            let d = film_rays.unnormalised(film);
+            let dir = d.normalize();
             let Some(hit) = self.camera_hit(Some(vis.prim(x, y, i)), origin, dir) else {
                 sum += scene.environment.radiance(dir);
                 continue;
             };
-            let sh = self.surface(&hit, origin, dir);
-            let spread = self.camera_spread(s, film);
-            let fp = spread.and_then(|sp| self.uv_footprint(&hit, &sh, origin, sp));
+            let tri = match last {
+                Some(t) if t.prim == hit.prim => t,
+                _ => *last.insert(self.triangle_numbers(&hit)),
+            };
+            let sh = self.surface_on(&hit, tri.ng, origin, dir);
+            let fp = spread_steps.and_then(|[sx, sy]| Self::uv_footprint_on(&tri, &sh, origin, [d + sx, d + sy]));
             let le = emitted_filtered(scene, hit.prim, hit.bary, -dir, fp);
             if s.max_depth < 2 {
                 sum += le;

@@ -435,6 +435,20 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
         assert!(png.is_file(), "{} is missing", png.display());
     }
 
+    // diagnose events scores the run's event pairs: a report with every breakdown, the same
+    // for a seed; a folder without a run is refused by name.
+    let report = ok(&["diagnose", "events", out, "--pairs", "500", "--seed", "3"]);
+    for row in ["all ", "< 1 ms", ">= 1 (HDR outputs only)", "away (> 4 px)", "saturated (at 1)"] {
+        assert!(report.contains(row), "no row {row:?} in\n{report}");
+    }
+    let all: Vec<&str> = report.lines().find(|l| l.starts_with("all ")).unwrap().split_whitespace().collect();
+    assert_eq!(all[1], "500", "{report}");
+    let (r2, sign): (f64, f64) = (all[2].parse().unwrap(), all[3].parse().unwrap());
+    assert!(r2.is_finite() && r2 <= 1.0 && (0.0..=1.0).contains(&sign), "{report}");
+    assert_eq!(report, ok(&["diagnose", "events", out, "--pairs", "500", "--seed", "3"]));
+    let e = fails(&["diagnose", "events", &format!("{out}-none")]);
+    assert!(e.contains("not a run folder") && e.contains("-none"), "{e}");
+
     // An unknown preset lists the registry.
     let e = fails(&["train", "--data", data, "--preset", "nope", "--out", &format!("{out}-nope"), "--quiet"]);
     assert!(e.contains("nope"), "{e}");

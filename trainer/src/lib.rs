@@ -19,6 +19,7 @@ pub mod checkpoint;
 pub mod config;
 pub mod data;
 pub mod deblur;
+pub mod diagnose;
 pub mod engine;
 pub mod error;
 pub mod eval;

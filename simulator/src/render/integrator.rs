@@ -491,7 +491,12 @@ impl<'a> Renderer<'a> {
     /// [`Renderer::uv_footprint`] with the hit triangle's numbers `tri` (the directions of
     /// `spread` need not be unit).
     #[inline]
-    fn uv_footprint_on(tri: &TriangleNumbers, sh: &SurfaceHit, origin: Vec3, spread: [Vec3; 2]) -> Option<(Vec2, Vec2)> {
+    fn uv_footprint_on(
+        tri: &TriangleNumbers,
+        sh: &SurfaceHit,
+        origin: Vec3,
+        spread: [Vec3; 2],
+    ) -> Option<(Vec2, Vec2)> {
         let TriangleNumbers { edges: [e1, e2], gram: [a11, a12, a22], det, uv_edges: [dt1, dt2], .. } = *tri;
         if !(det > 0.0) {
             return None;

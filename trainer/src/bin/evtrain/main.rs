@@ -82,11 +82,34 @@ enum Cmd {
         #[arg(long, default_value = "cpu")]
         scale: String,
     },
+    /// Diagnose a trained run (`diagnose events RUN`).
+    #[command(subcommand)]
+    Diagnose(Diagnose),
     /// Time optimisation steps: the reference step and the cpu-scale step.
     Bench {
         /// Timed steps per shape (after one warm-up).
         #[arg(long, default_value_t = 7)]
         reps: usize,
+    },
+}
+
+#[derive(Subcommand)]
+enum Diagnose {
+    /// How well the run's field explains its dataset's events: r2 of the predicted log-luma
+    /// change of event pairs against p*C and sign agreement, overall and by time gap, luma and
+    /// distance to intensity edges.
+    Events {
+        /// Run folder.
+        run: PathBuf,
+        /// Event pairs drawn (an event and the next at its pixel).
+        #[arg(long, default_value_t = 20000)]
+        pairs: usize,
+        /// Seed of the draw.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Worker threads (0: all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
     },
 }
 
@@ -117,6 +140,7 @@ fn main() -> Result<()> {
             print!("{}", toml::to_string(&(p.build)(scale))?);
             Ok(())
         }
+        Cmd::Diagnose(Diagnose::Events { run, pairs, seed, threads }) => diagnose_events(&run, pairs, seed, threads),
         Cmd::Bench { reps } => bench(reps),
     }
 }
@@ -311,6 +335,60 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
         scores.views.len(),
         ck.step
     );
+    Ok(())
+}
+
+fn diagnose_events(dir: &Path, pairs: usize, seed: u64, threads: usize) -> Result<()> {
+    use trainer::diagnose;
+    if pairs == 0 {
+        bail!("--pairs 0: draw at least one pair");
+    }
+    let run = RunPaths::new(dir);
+    let text = std::fs::read_to_string(run.config())
+        .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
+    let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
+    let opts = LoadOptions { read_events: true, read_sharp: true, ..LoadOptions::default() };
+    let dataset = Dataset::load(&record.data, &opts)?;
+    if dataset.events.is_empty() {
+        bail!("{}: the dataset has no events to diagnose (events.h5 is empty)", record.data.display());
+    }
+    let method = Method::new(&record.config, dataset.views.len());
+    let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
+    let reading = diagnose::EventReading::of(&record.config, &dataset);
+    let drawn = diagnose::draw_pairs(&dataset.events, |t| dataset.trajectory.contains(t), pairs, seed);
+    if drawn.is_empty() {
+        bail!("{}: no event has a successor at its pixel inside the trajectory", record.data.display());
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .with_context(|| format!("--threads {threads}: cannot start the workers"))?;
+    let lumas = pool.install(|| {
+        diagnose::field_lumas(
+            &dataset,
+            &method.model,
+            method.ecrf.as_ref(),
+            &ck.params,
+            &record.config,
+            &drawn,
+            reading.luma,
+        )
+    });
+    let sharp = diagnose::sharp_views(&dataset);
+    let scored = diagnose::score_pairs(&dataset.events, &sharp, dataset.intrinsics.width, &drawn, &reading, &lumas);
+    let title = format!(
+        "{} ({}, step {}) on {}: {} event pairs of {} events, threshold {:.3}/{:.3}, log_eps {:e}",
+        record.preset,
+        scale_name(record.scale),
+        ck.step,
+        record.data.display(),
+        drawn.len(),
+        dataset.events.len(),
+        reading.threshold[0],
+        reading.threshold[1],
+        reading.log_eps as f32
+    );
+    print!("{}", diagnose::format_report(&title, &diagnose::summarise(&scored)));
     Ok(())
 }
 

@@ -1,0 +1,491 @@
+//! How well a radiance field explains a dataset's events (`evtrain diagnose events`).
+//!
+//! The event loss asks the field for the log-luma change between the two times of an event
+//! pair (an event and the next event at the same pixel) and compares it with the successor's
+//! polarity times its threshold, `p C`. This module draws such pairs (a seeded sample of all
+//! pairs with a successor inside the trajectory), predicts the change with any predictor (the
+//! trained field through its eCRF, or an analytic oracle in the tests) and scores it the way
+//! `evsim dataset-fidelity` scores a simulator's pairs:
+//!
+//! - `r2 = 1 - sum (pred - target)^2 / sum target^2` (1: exact; 0: no better than predicting no
+//!   change at all);
+//! - sign agreement: the share of pairs whose predicted change has the polarity's sign;
+//!
+//! overall and broken down by the time gap between the two events, by the predicted luma (dark,
+//! mid, above 1: what a sigmoid colour output cannot reach) and by the distance to the nearest
+//! intensity edge in the dataset's sharp view nearest in time (when the dataset has sharp
+//! views).
+
+use rayon::prelude::*;
+
+use crate::config::TrainConfig;
+use crate::data::dataset::Dataset;
+use crate::data::events::Events;
+use crate::data::image::RgbImage;
+use crate::engine::model::Model;
+use crate::engine::renderer::{RayChunk, Renderer};
+use crate::engine::rng::Rng;
+use crate::events::ecrf::{Ecrf, EcrfWorkspace};
+use crate::method::BT601;
+use crate::train::{prepare, unzip};
+
+/// One scored event pair.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScoredPair {
+    /// The predicted log-luma change from the first event's time to the second's.
+    pub predicted: f64,
+    /// Its target: the second event's polarity times its threshold.
+    pub target: f64,
+    /// Time between the two events (us).
+    pub gap_us: f64,
+    /// The larger of the two predicted lumas (linear).
+    pub luma: f64,
+    /// Distance (pixels) to the nearest intensity edge of the sharp view nearest in time, when
+    /// the dataset has sharp views.
+    pub edge_px: Option<f64>,
+    /// Whether the pixel is saturated (a channel at 1) in that sharp view: the scene's light
+    /// there may exceed what a colour output in [0, 1] represents.
+    pub saturated: Option<bool>,
+}
+
+/// The scores of a set of pairs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairStats {
+    /// Pairs.
+    pub n: usize,
+    /// `1 - sum (pred - target)^2 / sum target^2` (NaN without pairs).
+    pub r2: f64,
+    /// Share of pairs whose prediction has the target's sign (NaN without pairs).
+    pub sign: f64,
+}
+
+impl PairStats {
+    /// The scores of `pairs`.
+    pub fn of<'a>(pairs: impl IntoIterator<Item = &'a ScoredPair>) -> PairStats {
+        let (mut n, mut err, mut energy, mut agree) = (0usize, 0.0f64, 0.0f64, 0usize);
+        for p in pairs {
+            n += 1;
+            err += (p.predicted - p.target).powi(2);
+            energy += p.target * p.target;
+            agree += usize::from(p.predicted * p.target > 0.0);
+        }
+        if n == 0 || energy <= 0.0 {
+            return PairStats { n, r2: f64::NAN, sign: f64::NAN };
+        }
+        PairStats { n, r2: 1.0 - err / energy, sign: agree as f64 / n as f64 }
+    }
+}
+
+/// The whole report: overall and per bin of each breakdown (label, scores).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    /// Every pair.
+    pub overall: PairStats,
+    /// By time between the two events.
+    pub by_gap: Vec<(String, PairStats)>,
+    /// By the larger predicted luma of the two.
+    pub by_luma: Vec<(String, PairStats)>,
+    /// By distance to the nearest intensity edge (empty without sharp views).
+    pub by_edge: Vec<(String, PairStats)>,
+    /// By saturation of the pixel in the nearest sharp view (empty without sharp views).
+    pub by_saturation: Vec<(String, PairStats)>,
+}
+
+/// Bins of the time gap (us): upper bounds, the last open.
+const GAP_BINS_US: [(f64, &str); 4] =
+    [(1e3, "< 1 ms"), (4e3, "1-4 ms"), (16e3, "4-16 ms"), (f64::INFINITY, ">= 16 ms")];
+/// Bins of the luma: upper bounds.
+const LUMA_BINS: [(f64, &str); 4] =
+    [(0.02, "< 0.02 (dark)"), (0.2, "0.02-0.2"), (1.0, "0.2-1"), (f64::INFINITY, ">= 1 (HDR outputs only)")];
+/// Bins of the distance to an edge (pixels): upper bounds.
+const EDGE_BINS_PX: [(f64, &str); 3] =
+    [(1.5, "on an edge (<= 1 px)"), (4.5, "near (2-4 px)"), (f64::INFINITY, "away (> 4 px)")];
+/// Gradient magnitude of display-referred luma (per pixel) that marks an intensity edge.
+pub const EDGE_GRADIENT: f32 = 0.1;
+
+/// Scores per bin of `key` over `bins` (upper bounds); pairs whose key is None are left out.
+fn binned(
+    pairs: &[ScoredPair],
+    bins: &[(f64, &str)],
+    key: impl Fn(&ScoredPair) -> Option<f64>,
+) -> Vec<(String, PairStats)> {
+    let bin_of = |v: f64| bins.iter().position(|&(hi, _)| v < hi);
+    bins.iter()
+        .enumerate()
+        .map(|(b, &(_, label))| {
+            let stats = PairStats::of(pairs.iter().filter(|p| key(p).and_then(bin_of) == Some(b)));
+            (label.to_string(), stats)
+        })
+        .collect()
+}
+
+/// The report of `pairs`.
+pub fn summarise(pairs: &[ScoredPair]) -> Report {
+    let by_edge = if pairs.iter().any(|p| p.edge_px.is_some()) {
+        binned(pairs, &EDGE_BINS_PX, |p| p.edge_px)
+    } else {
+        Vec::new()
+    };
+    let by_saturation = if pairs.iter().any(|p| p.saturated.is_some()) {
+        let bins = [(0.5, "below 1"), (f64::INFINITY, "saturated (at 1)")];
+        binned(pairs, &bins, |p| p.saturated.map(f64::from))
+    } else {
+        Vec::new()
+    };
+    Report {
+        overall: PairStats::of(pairs),
+        by_gap: binned(pairs, &GAP_BINS_US, |p| Some(p.gap_us)),
+        by_luma: binned(pairs, &LUMA_BINS, |p| Some(p.luma)),
+        by_edge,
+        by_saturation,
+    }
+}
+
+/// Up to `n` event pairs `(j, successor of j)`, drawn without replacement with `seed` from the
+/// events with a successor whose two times lie inside the dataset's trajectory; in event order.
+pub fn draw_pairs(events: &Events, contains: impl Fn(f64) -> bool, n: usize, seed: u64) -> Vec<(usize, usize)> {
+    let mut all: Vec<(usize, usize)> = (0..events.len())
+        .filter_map(|j| events.successor(j).map(|k| (j, k)))
+        .filter(|&(j, k)| contains(events.t_us[j]) && contains(events.t_us[k]))
+        .collect();
+    if all.len() > n {
+        // a partial Fisher-Yates shuffle: the first n are a uniform sample
+        let mut rng = Rng::new(seed, 0x6469_6167);
+        for i in 0..n {
+            let r = i + rng.below((all.len() - i) as u64) as usize;
+            all.swap(i, r);
+        }
+        all.truncate(n);
+        all.sort_unstable();
+    }
+    all
+}
+
+/// Per pixel, the distance (pixels, 8-connected chamfer) to the nearest pixel whose luma
+/// gradient (central differences of display-referred Rec.709 luma) is at least
+/// [`EDGE_GRADIENT`]; infinity when the image has no edge.
+pub fn edge_distance(img: &RgbImage) -> Vec<f32> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    let luma: Vec<f32> = img.data.chunks_exact(3).map(|c| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]).collect();
+    let at = |i: usize, j: usize| luma[j * w + i];
+    let mut d = vec![f32::INFINITY; w * h];
+    for j in 0..h {
+        for i in 0..w {
+            let gx = (at((i + 1).min(w - 1), j) - at(i.saturating_sub(1), j)) * 0.5;
+            let gy = (at(i, (j + 1).min(h - 1)) - at(i, j.saturating_sub(1))) * 0.5;
+            if (gx * gx + gy * gy).sqrt() >= EDGE_GRADIENT {
+                d[j * w + i] = 0.0;
+            }
+        }
+    }
+    // two passes of the 3x3 chamfer (1, sqrt 2)
+    let diag = std::f32::consts::SQRT_2;
+    for j in 0..h {
+        for i in 0..w {
+            let mut v = d[j * w + i];
+            if i > 0 {
+                v = v.min(d[j * w + i - 1] + 1.0);
+            }
+            if j > 0 {
+                v = v.min(d[(j - 1) * w + i] + 1.0);
+                if i > 0 {
+                    v = v.min(d[(j - 1) * w + i - 1] + diag);
+                }
+                if i + 1 < w {
+                    v = v.min(d[(j - 1) * w + i + 1] + diag);
+                }
+            }
+            d[j * w + i] = v;
+        }
+    }
+    for j in (0..h).rev() {
+        for i in (0..w).rev() {
+            let mut v = d[j * w + i];
+            if i + 1 < w {
+                v = v.min(d[j * w + i + 1] + 1.0);
+            }
+            if j + 1 < h {
+                v = v.min(d[(j + 1) * w + i] + 1.0);
+                if i + 1 < w {
+                    v = v.min(d[(j + 1) * w + i + 1] + diag);
+                }
+                if i > 0 {
+                    v = v.min(d[(j + 1) * w + i - 1] + diag);
+                }
+            }
+            d[j * w + i] = v;
+        }
+    }
+    d
+}
+
+/// The thresholds, log offset and luma weights the diagnosis reads events with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EventReading {
+    /// `[C_on, C_off]`.
+    pub threshold: [f64; 2],
+    /// Offset of the log.
+    pub log_eps: f64,
+    /// Luma weights of the linear colour.
+    pub luma: [f64; 3],
+}
+
+impl EventReading {
+    /// What run configuration `cfg` trains with (its events table, resolved from the dataset),
+    /// else the dataset's event model.
+    pub fn of(cfg: &TrainConfig, data: &Dataset) -> EventReading {
+        let mut c = cfg.clone();
+        if c.events.is_none() {
+            c.events = Some(crate::config::EventLossConfig::reference());
+        }
+        crate::method::resolve(&mut c, data);
+        let e = c.events.expect("set above");
+        EventReading {
+            threshold: e.threshold.unwrap_or([0.2, 0.2]),
+            log_eps: e.log_eps.unwrap_or(1e-5),
+            luma: e.luma.unwrap_or(BT601),
+        }
+    }
+}
+
+/// Score `pairs` of `events` given each pair's two linear lumas `lumas` (at the first event's
+/// time, at the second's); the edge distance comes from the sharp image nearest in time among
+/// `sharp` (mid-time in us, image of `width` pixels a row).
+pub fn score_pairs(
+    events: &Events,
+    sharp: &[(f64, &RgbImage)],
+    width: u32,
+    pairs: &[(usize, usize)],
+    reading: &EventReading,
+    lumas: &[[f64; 2]],
+) -> Vec<ScoredPair> {
+    let ev = events;
+    let mut edges: Vec<Option<Vec<f32>>> = vec![None; sharp.len()];
+    let w = width as usize;
+    pairs
+        .iter()
+        .zip(lumas)
+        .map(|(&(j, k), &[lj, lk])| {
+            let theta = if ev.polarity[k] > 0 { reading.threshold[0] } else { reading.threshold[1] };
+            let predicted = (lk + reading.log_eps).ln() - (lj + reading.log_eps).ln();
+            let t_mid = 0.5 * (ev.t_us[j] + ev.t_us[k]);
+            let nearest =
+                (0..sharp.len()).min_by(|&a, &b| (sharp[a].0 - t_mid).abs().total_cmp(&(sharp[b].0 - t_mid).abs()));
+            let (x, y) = (ev.x[j].round() as usize, ev.y[j].round() as usize);
+            let edge_px = nearest.map(|s| {
+                let d = edges[s].get_or_insert_with(|| edge_distance(sharp[s].1));
+                d.get(y * w + x).copied().unwrap_or(f32::INFINITY) as f64
+            });
+            let saturated = nearest
+                .and_then(|s| sharp[s].1.data.get(3 * (y * w + x)..3 * (y * w + x) + 3))
+                .map(|c| c.iter().any(|&v| v >= 1.0));
+            ScoredPair {
+                predicted,
+                target: ev.polarity[k] as f64 * theta,
+                gap_us: ev.t_us[k] - ev.t_us[j],
+                luma: lj.max(lk),
+                edge_px,
+                saturated,
+            }
+        })
+        .collect()
+}
+
+/// The linear lumas a trained field (fine pass, through its eCRF when it has one) gives each
+/// pair's pixel at its two times: rays through the pixel centre at the trajectory's poses, as
+/// the event loss casts them. Pairs are rendered in parallel on the current rayon pool; the
+/// result does not depend on it.
+pub fn field_lumas(
+    data: &Dataset,
+    model: &Model,
+    ecrf: Option<&Ecrf>,
+    params: &[f32],
+    cfg: &TrainConfig,
+    pairs: &[(usize, usize)],
+    luma: [f64; 3],
+) -> Vec<[f64; 2]> {
+    let ev = &data.events;
+    let per_call = (cfg.chunk_rays * 4).max(2) / 2;
+    pairs
+        .par_chunks(per_call)
+        .map_init(Renderer::default, |renderer, chunk| {
+            let mut rays = Vec::with_capacity(2 * chunk.len());
+            let mut pol = Vec::with_capacity(2 * chunk.len());
+            for &(j, k) in chunk {
+                let (x, y) = (ev.x[j] as f64 + 0.5, ev.y[j] as f64 + 0.5);
+                for t in [ev.t_us[j], ev.t_us[k]] {
+                    // draw_pairs keeps pairs inside the trajectory
+                    let pose = data.trajectory.pose_at(t).expect("pair inside the trajectory");
+                    rays.push(prepare(data, &data.intrinsics.ray_through(&pose, x, y)));
+                }
+                // the loss reads both of a pair's colours with the successor's polarity
+                pol.extend([ev.polarity[k], ev.polarity[k]]);
+            }
+            let (o, d, vd) = unzip(&rays);
+            renderer.forward(model, params, &RayChunk { origins: &o, dirs: &d, viewdirs: &vd }, None);
+            let cols = renderer.fine();
+            let mut y = [vec![0.0f32; rays.len()], vec![0.0f32; rays.len()], vec![0.0f32; rays.len()]];
+            for (c, yc) in y.iter_mut().enumerate() {
+                let x: Vec<f32> = cols.iter().map(|col| col[c]).collect();
+                match ecrf {
+                    Some(e) => e.forward(params, c, &x, &pol, yc, &mut EcrfWorkspace::default()),
+                    None => yc.copy_from_slice(&x),
+                }
+            }
+            let l = |i: usize| (0..3).map(|c| luma[c] * y[c][i] as f64).sum::<f64>();
+            (0..chunk.len()).map(|p| [l(2 * p), l(2 * p + 1)]).collect::<Vec<_>>()
+        })
+        .flatten()
+        .collect()
+}
+
+/// The sharp images of `data`'s views with their mid-times (us), for [`score_pairs`].
+pub fn sharp_views(data: &Dataset) -> Vec<(f64, &RgbImage)> {
+    data.views.iter().filter_map(|v| v.sharp.as_ref().map(|s| (v.t_mid_us, s))).collect()
+}
+
+/// The report as text: one line per row, r2 and sign agreement per bin.
+pub fn format_report(title: &str, r: &Report) -> String {
+    let mut out = format!("{title}\n{:<24} {:>8} {:>8} {:>8}\n", "pairs", "n", "r2", "sign");
+    let row = |label: &str, s: &PairStats| format!("{label:<24} {:>8} {:>8.3} {:>8.3}\n", s.n, s.r2, s.sign);
+    out += &row("all", &r.overall);
+    let breakdowns = [
+        ("time gap", &r.by_gap),
+        ("predicted luma (linear)", &r.by_luma),
+        ("distance to an edge of the nearest sharp view", &r.by_edge),
+        ("the pixel in the nearest sharp view", &r.by_saturation),
+    ];
+    for (name, bins) in breakdowns {
+        if bins.is_empty() {
+            continue;
+        }
+        out += &format!("by {name}\n");
+        for (label, s) in bins {
+            out += &row(&format!("  {label}"), s);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pair(predicted: f64, target: f64, gap_us: f64, luma: f64) -> ScoredPair {
+        ScoredPair { predicted, target, gap_us, luma, edge_px: None, saturated: None }
+    }
+
+    #[test]
+    fn r2_is_one_for_exact_predictions_zero_for_no_change_and_sign_counts_agreement() {
+        let exact = [pair(0.2, 0.2, 500.0, 0.5), pair(-0.2, -0.2, 2e3, 0.5)];
+        let s = PairStats::of(&exact);
+        assert_eq!((s.n, s.r2, s.sign), (2, 1.0, 1.0));
+        let none = [pair(0.0, 0.2, 500.0, 0.5), pair(0.0, -0.2, 2e3, 0.5)];
+        let s = PairStats::of(&none);
+        assert!(s.r2.abs() < 1e-12 && s.sign == 0.0);
+        let wrong = [pair(-0.2, 0.2, 500.0, 0.5), pair(0.1, 0.2, 2e3, 0.5)];
+        let s = PairStats::of(&wrong);
+        // errors 0.16 and 0.01 over energy 0.08
+        assert!((s.r2 - (1.0 - 0.17 / 0.08)).abs() < 1e-12 && s.sign == 0.5);
+        assert!(PairStats::of(&[]).r2.is_nan());
+    }
+
+    #[test]
+    fn pairs_fall_in_their_bins() {
+        let pairs = [pair(0.2, 0.2, 500.0, 0.01), pair(0.0, 0.2, 5e3, 0.5), pair(0.2, 0.2, 20e3, 2.0)];
+        let r = summarise(&pairs);
+        let n = |bins: &[(String, PairStats)]| bins.iter().map(|b| b.1.n).collect::<Vec<_>>();
+        assert_eq!(n(&r.by_gap), [1, 0, 1, 1]);
+        assert_eq!(n(&r.by_luma), [1, 0, 1, 1]);
+        assert!(r.by_edge.is_empty() && r.by_saturation.is_empty());
+        assert_eq!(r.by_gap[2].1.r2, 0.0);
+        assert_eq!(r.by_luma[3].1.r2, 1.0);
+    }
+
+    #[test]
+    fn edge_distance_is_zero_on_a_step_and_grows_away_from_it() {
+        let (w, h) = (12u32, 3u32);
+        let data = (0..w * h).flat_map(|p| if p % w < 6 { [0.0; 3] } else { [1.0; 3] }).collect();
+        let d = edge_distance(&RgbImage { width: w, height: h, data });
+        // central differences mark the columns either side of the step
+        assert_eq!(d[5], 0.0);
+        assert_eq!(d[6], 0.0);
+        assert_eq!(d[0], 5.0);
+        assert_eq!(d[11], 5.0);
+        let flat = edge_distance(&RgbImage { width: 4, height: 4, data: vec![0.5; 48] });
+        assert!(flat.iter().all(|v| v.is_infinite()));
+    }
+
+    #[test]
+    fn drawn_pairs_are_a_seeded_sample_of_successor_pairs_inside_the_trajectory() {
+        // 4 pixels, 10 events each, 1 ms apart
+        let n = 40;
+        let events = Events {
+            x: (0..n).map(|i| (i % 4) as f32).collect(),
+            y: vec![0.0; n],
+            t_us: (0..n).map(|i| i as f64 * 1e3).collect(),
+            polarity: vec![1; n],
+            successors: (0..n).map(|i| if i + 4 < n { (i + 4) as u32 } else { u32::MAX }).collect(),
+            ..Events::default()
+        };
+        let inside = |t: f64| t <= 30e3;
+        let all = draw_pairs(&events, inside, 1000, 1);
+        assert_eq!(all.len(), 27); // j + 4 <= 30
+        assert!(all.iter().all(|&(j, k)| k == j + 4 && inside(events.t_us[k])));
+        let a = draw_pairs(&events, inside, 10, 7);
+        assert_eq!(a, draw_pairs(&events, inside, 10, 7));
+        assert_ne!(a, draw_pairs(&events, inside, 10, 8));
+        assert_eq!(a.len(), 10);
+        assert!(a.windows(2).all(|p| p[0] < p[1]));
+    }
+
+    /// One pixel whose log luma is a known function of time; events where it crosses the
+    /// threshold (an ideal sensor) and their successors.
+    fn analytic_events(c: f64) -> (Events, impl Fn(f64) -> f64) {
+        let log_l = |t_us: f64| 0.8 * (2.0 * std::f64::consts::PI * t_us / 20e3).sin() + 0.3 * (t_us / 7e3).cos();
+        let (mut t_us, mut polarity) = (Vec::new(), Vec::new());
+        let mut reference = log_l(0.0);
+        let mut t = 0.0;
+        while t < 300e3 {
+            t += 1.0;
+            let v = log_l(t);
+            while (v - reference).abs() >= c {
+                let p: i8 = if v > reference { 1 } else { -1 };
+                reference += p as f64 * c;
+                t_us.push(t);
+                polarity.push(p);
+            }
+        }
+        let n = t_us.len();
+        let events = Events {
+            x: vec![0.0; n],
+            y: vec![0.0; n],
+            t_us,
+            polarity,
+            successors: (0..n).map(|i| if i + 1 < n { (i + 1) as u32 } else { u32::MAX }).collect(),
+            ..Events::default()
+        };
+        (events, move |t: f64| log_l(t).exp())
+    }
+
+    #[test]
+    fn an_analytic_oracle_scores_one_and_no_change_or_noise_scores_low() {
+        let c = 0.2;
+        let (events, luma) = analytic_events(c);
+        let reading = EventReading { threshold: [c, c], log_eps: 0.0, luma: [0.2126, 0.7152, 0.0722] };
+        let pairs = draw_pairs(&events, |_| true, 500, 3);
+        assert!(pairs.len() > 100, "{} pairs", pairs.len());
+        let oracle: Vec<[f64; 2]> = pairs.iter().map(|&(j, k)| [luma(events.t_us[j]), luma(events.t_us[k])]).collect();
+        let r = summarise(&score_pairs(&events, &[], 1, &pairs, &reading, &oracle));
+        // events are stamped to the next microsecond after the crossing: within 1e-3 of C
+        assert!(r.overall.r2 > 0.99 && r.overall.sign == 1.0, "{:?}", r.overall);
+        let still: Vec<[f64; 2]> = pairs.iter().map(|&(j, _)| [luma(events.t_us[j]); 2]).collect();
+        let r = summarise(&score_pairs(&events, &[], 1, &pairs, &reading, &still));
+        assert!(r.overall.r2.abs() < 1e-9, "{:?}", r.overall);
+        // the luma a few ms off: a wrong time base
+        let late: Vec<[f64; 2]> =
+            pairs.iter().map(|&(j, k)| [luma(events.t_us[j] + 3e3), luma(events.t_us[k] + 3e3)]).collect();
+        let r = summarise(&score_pairs(&events, &[], 1, &pairs, &reading, &late));
+        assert!(r.overall.r2 < 0.5, "{:?}", r.overall);
+    }
+}

@@ -285,6 +285,27 @@ fn runs_repeat_for_a_seed_and_differ_between_seeds() {
 }
 
 #[test]
+fn an_event_window_of_one_hop_is_the_single_event_loss_and_wider_windows_train() {
+    let e_nerf = presets::preset("e-nerf").expect("the e-nerf preset");
+    let cfg = small(e_nerf, 3);
+    let with = |w: Option<[u32; 2]>| {
+        let mut c = cfg.clone();
+        c.events.as_mut().unwrap().window = w;
+        c
+    };
+    let (a, b, c) = (run_dir("window-none"), run_dir("window-1"), run_dir("window-2-6"));
+    train(&cfg, None, &a, None);
+    train(&with(Some([1, 1])), None, &b, None);
+    assert!(checkpoint_bytes(&a) == checkpoint_bytes(&b), "window [1, 1] differs from single events");
+    let rows = train(&with(Some([2, 6])), None, &c, None);
+    assert!(rows.iter().all(|r| r.event_loss.is_finite() && r.event_loss > 0.0), "{rows:?}");
+    assert!(checkpoint_bytes(&a) != checkpoint_bytes(&c), "a window of 2-6 hops trains as single events");
+    for run in [a, b, c] {
+        std::fs::remove_dir_all(&run.dir).unwrap();
+    }
+}
+
+#[test]
 fn truncated_and_foreign_checkpoints_are_refused_with_the_reason() {
     let cfg = small(nerf(), 1);
     let model = Model::new(&cfg.model);

@@ -112,7 +112,16 @@ pub struct EventLossConfig {
     /// Supervise only pairs of events inside one training view's exposure (E2NeRF-style)
     /// instead of every pair (the reference).
     pub inside_exposures: bool,
+    /// Event windows (the reference's `event_accumulate_step_range`): each pair hops a number
+    /// of events at its pixel drawn uniformly in `[min, max]` (fewer where the pixel's events or
+    /// the trajectory end first) and its target is the hopped events' polarities times their
+    /// thresholds, summed; `None`: single events (one hop, the reference default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<[u32; 2]>,
 }
+
+/// Most events an event window ([`EventLossConfig::window`]) hops.
+pub const MAX_EVENT_WINDOW: u32 = 1000;
 
 impl EventLossConfig {
     /// The reference synthetic-data settings (dataset-derived values left to resolve).
@@ -125,6 +134,7 @@ impl EventLossConfig {
             luma: None,
             colour: false,
             inside_exposures: false,
+            window: None,
         }
     }
 }
@@ -229,6 +239,16 @@ impl TrainConfig {
             if e.batch == 0 {
                 return Err("events.batch = 0; it must be >= 1 (or drop [events] for images only)".into());
             }
+            if let Some([lo, hi]) = e.window {
+                if !(1 <= lo && lo <= hi && hi <= MAX_EVENT_WINDOW) {
+                    return Err(format!(
+                        "events.window = [{lo}, {hi}]; it must be [min, max] hops with 1 <= min <= max <= {MAX_EVENT_WINDOW} (or none for single events)"
+                    ));
+                }
+                if e.inside_exposures {
+                    return Err("events.window with events.inside_exposures = true: windows of events inside exposures are not supported; drop one of them".into());
+                }
+            }
             let mut checks = vec![("events.weight", e.weight, true)];
             if let Some([on, off]) = e.threshold {
                 checks.extend([("events.threshold[0]", on, false), ("events.threshold[1]", off, false)]);
@@ -330,6 +350,8 @@ mod tests {
         assert!(e.colour && e.threshold == Some([0.3, 0.25]));
         assert!(c.ecrf.is_none() && !c.model.explicit);
         assert_eq!(sets(&["iterations=12"]).unwrap().iterations, 12);
+        // Event windows: a hop range, refused out of order, zero or with inside_exposures.
+        assert_eq!(sets(&["events.window=[2, 8]"]).unwrap().events.unwrap().window, Some([2, 8]));
         // The training images: EDI-deblurred, or an external program's.
         assert_eq!(sets(&["images=edi"]).unwrap().images, ImageSource::Edi);
         let c = sets(&[r#"images={deblur="mprnet {input} {output}"}"#]).unwrap();
@@ -340,6 +362,10 @@ mod tests {
             (&["ecrf=none", "ecrf.polarity=false"][..], "`ecrf` is not in this configuration"),
             (&["iterations=many"][..], "iterations"),
             (&["events.weight=-1"][..], "events.weight"),
+            (&["events.window=[0, 2]"][..], "events.window = [0, 2]"),
+            (&["events.window=[4, 2]"][..], "1 <= min <= max"),
+            (&["events.window=[1, 5000]"][..], "<= 1000"),
+            (&["events.window=[1, 4]", "events.inside_exposures=true"][..], "inside_exposures"),
             (&["batch_rays"][..], "KEY=VALUE"),
         ] {
             let err = sets(bad).unwrap_err();

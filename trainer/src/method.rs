@@ -28,6 +28,7 @@ use crate::blur::se3::{self, Rigid};
 use crate::blur::trajectory::Trajectory;
 use crate::config::{ImageSource, TrainConfig};
 use crate::data::dataset::{Dataset, View};
+use crate::data::events::Events;
 use crate::data::image::RgbImage;
 use crate::data::rays::{ndc_ray_backward, Intrinsics, Ray};
 use crate::engine::adam::Adam;
@@ -185,9 +186,10 @@ pub fn event_model(data: &Dataset) -> Option<toml::Value> {
     manifest.get("event_model").cloned()
 }
 
-/// The events the loss samples from: indices of events with a successor (and, with
-/// `inside_exposures`, whose pair lies inside one training view's exposure).
-pub fn event_candidates(data: &Dataset, train_views: &[usize], inside_exposures: bool) -> Vec<u32> {
+/// The events the loss samples from: indices of events with a successor (`min_hops`
+/// successors, for event windows) inside the trajectory (and, with `inside_exposures`, whose
+/// pair lies inside one training view's exposure).
+pub fn event_candidates(data: &Dataset, train_views: &[usize], inside_exposures: bool, min_hops: u32) -> Vec<u32> {
     let ev = &data.events;
     let mut windows: Vec<(f64, f64)> =
         train_views.iter().map(|&v| (data.views[v].t_start_us, data.views[v].t_end_us)).collect();
@@ -197,8 +199,9 @@ pub fn event_candidates(data: &Dataset, train_views: &[usize], inside_exposures:
         let i = windows.partition_point(|w| w.0 <= a);
         i > 0 && b <= windows[i - 1].1
     };
+    let nth = |i: usize| (0..min_hops.max(1)).try_fold(i, |e, _| ev.successor(e));
     (0..ev.len() as u32)
-        .filter(|&i| match ev.successor(i as usize) {
+        .filter(|&i| match nth(i as usize) {
             None => false,
             Some(k) => {
                 let (a, b) = (ev.t_us[i as usize], ev.t_us[k]);
@@ -206,6 +209,32 @@ pub fn event_candidates(data: &Dataset, train_views: &[usize], inside_exposures:
             }
         })
         .collect()
+}
+
+/// The end of an event window: from event `j`, up to `hops` events on at its pixel (fewer
+/// where the pixel's events, or those inside the trajectory (`contains`), end first), and the
+/// target log change, the hopped events' polarities times `threshold` (ON, OFF) summed. None
+/// when `j` has no successor.
+pub fn event_window(
+    ev: &Events,
+    contains: impl Fn(f64) -> bool,
+    j: usize,
+    hops: u32,
+    threshold: [f32; 2],
+) -> Option<(usize, f32)> {
+    let (mut k, mut counts) = (j, [0u32; 2]);
+    for h in 0..hops {
+        // the first successor is the caller's to check (candidates are inside the trajectory)
+        match ev.successor(k).filter(|&n| h == 0 || contains(ev.t_us[n])) {
+            Some(n) => {
+                k = n;
+                counts[usize::from(ev.polarity[n] < 0)] += 1;
+            }
+            None => break,
+        }
+    }
+    // one ON event: 1 * C_on - 0 * C_off, exactly C_on (and -C_off for one OFF event)
+    (k != j).then(|| (k, counts[0] as f32 * threshold[0] - counts[1] as f32 * threshold[1]))
 }
 
 /// What a step needs besides the parameters, prepared once per run.
@@ -240,7 +269,7 @@ impl StepData {
                     data.dir.join("dataset.toml").display()
                 )));
             }
-            candidates = event_candidates(data, &train_views, e.inside_exposures);
+            candidates = event_candidates(data, &train_views, e.inside_exposures, e.window.map_or(1, |w| w[0]));
             if candidates.is_empty() {
                 return Err(TrainError::Missing {
                     path: data.dir.join("events.h5"),
@@ -311,8 +340,10 @@ enum Kind {
     /// Pixel (`i`, `j`) of `view`: target colour and EDI target (NaN: none); `slot` is its
     /// index among the view's pixels of the step (the DSK's batch).
     Image { view: u32, i: u32, j: u32, slot: u32, target: [f32; 3], edi: [f32; 3] },
-    /// An event pair (two rays: t_j, t_k) with the successor's polarity; channel 3 = luma.
-    Event { polarity: i8, channel: u8 },
+    /// An event pair (two rays: t_j, t_k) with the last event's polarity (the eCRF's input)
+    /// and the target log change (polarities times thresholds, summed over the hopped events);
+    /// channel 3 = luma.
+    Event { polarity: i8, target: f32, channel: u8 },
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -409,7 +440,7 @@ impl Batch {
 #[derive(Clone, Copy, Debug)]
 enum Pick {
     Pixel { v: usize, i: u32, j: u32, slot: u32 },
-    Event { j: usize, k: usize },
+    Event { j: usize, k: usize, target: f32 },
 }
 
 /// One view's blur model in this step.
@@ -713,7 +744,15 @@ pub fn step(
             slots[v] += 1;
         } else {
             let j = sd.candidates[pick_ev.below(sd.candidates.len() as u64) as usize] as usize;
-            picks.push(Pick::Event { j, k: ev.successor(j).expect("candidates have successors") });
+            // (a window of one width draws nothing: [1, 1] is the single-event loss bit for bit)
+            let hops = match evc.and_then(|e| e.window) {
+                Some([lo, hi]) if hi > lo => lo + pick_ev.below(u64::from(hi - lo) + 1) as u32,
+                Some([lo, _]) => lo,
+                None => 1,
+            };
+            let (k, target) = event_window(ev, |t| data.trajectory.contains(t), j, hops, [th_on as f32, th_off as f32])
+                .expect("candidates have successors");
+            picks.push(Pick::Event { j, k, target });
         }
     }
     // Each view's batch pixels in slot order.
@@ -811,7 +850,7 @@ pub fn step(
                 let kind = Kind::Image { view: v as u32, i, j, slot, target: img.pixel(i, j), edi };
                 batch.groups.push(Group { first, n: batch.rays.len() - first, kind });
             }
-            Pick::Event { j, k } => {
+            Pick::Event { j, k, target } => {
                 let (x, y) = (ev.x[j] as f64, ev.y[j] as f64);
                 let rays = [ev.t_us[j], ev.t_us[k]].map(|t| {
                     data.trajectory.pose_at(t).map(|pose| data.intrinsics.ray_through(&pose, x + 0.5, y + 0.5))
@@ -821,7 +860,11 @@ pub fn step(
                 batch.push(data, b, 0.0);
                 batch.events += 1;
                 let channel = if evc.is_some_and(|e| e.colour) { bayer(x, y) } else { 3 };
-                batch.groups.push(Group { first, n: 2, kind: Kind::Event { polarity: ev.polarity[k], channel } });
+                batch.groups.push(Group {
+                    first,
+                    n: 2,
+                    kind: Kind::Event { polarity: ev.polarity[k], target, channel },
+                });
             }
         }
     }
@@ -1006,18 +1049,7 @@ pub fn step(
                     }
                 }
             }
-            sums.event += event_losses(
-                wk,
-                ecrf,
-                p,
-                g,
-                &groups[g0..g1],
-                r0,
-                [th_on as f32, th_off as f32],
-                luma,
-                log_eps,
-                ev_scale,
-            );
+            sums.event += event_losses(wk, ecrf, p, g, &groups[g0..g1], r0, luma, log_eps, ev_scale);
             let with_rays = learns_rays && any_kernel;
             if with_rays {
                 wk.d_rays.resize(n, RayGrad::zero());
@@ -1260,17 +1292,17 @@ pub fn blur_loss<R: Real>(
 }
 
 /// One event pair's loss on one pass: with L = <luma, y> of the eCRF outputs y at t_j and t_k,
-/// `weight (log(L_k + eps) - log(L_j + eps) - p Theta)^2`.
+/// `weight (log(L_k + eps) - log(L_j + eps) - target)^2`, the target `p Theta` for a single
+/// event (the sum over the hopped events for a window).
 #[derive(Clone, Copy, Debug)]
 pub struct EventTerm<R> {
     /// Luma weights (a one-hot channel for colour events).
     pub luma: [R; 3],
     /// Weight of the event (colour events: by channel).
     pub weight: R,
-    /// Polarity of the successor event (+1 / -1).
-    pub polarity: i8,
-    /// Threshold of that polarity.
-    pub theta: R,
+    /// The log change the events say: polarity times threshold, summed over the pair's
+    /// events after the first.
+    pub target: R,
     /// Offset of the log.
     pub log_eps: R,
 }
@@ -1280,7 +1312,7 @@ impl<R: Real> EventTerm<R> {
     pub fn loss(&self, yj: [R; 3], yk: [R; 3], scale: R) -> (R, [R; 3], [R; 3]) {
         let l = |y: [R; 3]| (0..3).map(|c| self.luma[c] * y[c]).sum::<R>();
         let (lj, lk) = (l(yj), l(yk));
-        let r = (lk + self.log_eps).ln() - (lj + self.log_eps).ln() - R::of(self.polarity as f64) * self.theta;
+        let r = (lk + self.log_eps).ln() - (lj + self.log_eps).ln() - self.target;
         let dr = R::of(2.0) * self.weight * r * scale;
         let (dlk, dlj) = (dr / (lk + self.log_eps), -dr / (lj + self.log_eps));
         (self.weight * r * r, self.luma.map(|w| w * dlj), self.luma.map(|w| w * dlk))
@@ -1344,15 +1376,14 @@ fn event_losses(
     g: &mut [f32],
     groups: &[Group],
     r0: usize,
-    threshold: [f32; 2],
     luma: [f32; 3],
     log_eps: f32,
     scale: f32,
 ) -> f64 {
-    let evs: Vec<(usize, i8, u8)> = groups
+    let evs: Vec<(usize, i8, f32, u8)> = groups
         .iter()
         .filter_map(|gr| match gr.kind {
-            Kind::Event { polarity, channel } => Some((gr.first - r0, polarity, channel)),
+            Kind::Event { polarity, target, channel } => Some((gr.first - r0, polarity, target, channel)),
             _ => None,
         })
         .collect();
@@ -1366,7 +1397,7 @@ fn event_losses(
         wk.epol.clear();
         for c in 0..3 {
             wk.ex[c].clear();
-            for &(a, pol, _) in &evs {
+            for &(a, pol, _, _) in &evs {
                 wk.ex[c].extend([cols[a][c], cols[a + 1][c]]);
                 if c == 0 {
                     wk.epol.extend([pol, pol]);
@@ -1380,7 +1411,7 @@ fn event_losses(
             wk.edy[c].clear();
             wk.edy[c].resize(m, 0.0);
         }
-        for (e, &(_, pol, channel)) in evs.iter().enumerate() {
+        for (e, &(_, _, target, channel)) in evs.iter().enumerate() {
             let (weight, lum): (f32, [f32; 3]) = if channel < 3 {
                 let mut l = [0.0; 3];
                 l[channel as usize] = 1.0;
@@ -1388,9 +1419,8 @@ fn event_losses(
             } else {
                 (1.0, luma)
             };
-            let theta = if pol > 0 { threshold[0] } else { threshold[1] };
             let y = |i: usize| [wk.ey[0][i], wk.ey[1][i], wk.ey[2][i]];
-            let t = EventTerm { luma: lum, weight, polarity: pol, theta, log_eps };
+            let t = EventTerm { luma: lum, weight, target, log_eps };
             let (loss, dj, dk) = t.loss(y(2 * e), y(2 * e + 1), scale);
             total += loss as f64;
             for c in 0..3 {
@@ -1405,7 +1435,7 @@ fn event_losses(
                 None => wk.edx.copy_from_slice(&wk.edy[c]),
             }
             let dcol = if pass == 0 { &mut wk.dc } else { &mut wk.df };
-            for (e, &(a, _, _)) in evs.iter().enumerate() {
+            for (e, &(a, _, _, _)) in evs.iter().enumerate() {
                 dcol[a][c] += wk.edx[2 * e];
                 dcol[a + 1][c] += wk.edx[2 * e + 1];
             }

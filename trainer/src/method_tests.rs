@@ -349,8 +349,7 @@ fn event_term_through_the_ecrf_matches_finite_differences() {
             let term = EventTerm {
                 luma: if colour { [0.0, 1.0, 0.0] } else { [0.299, 0.587, 0.114] },
                 weight: if colour { 0.2 } else { 1.0 },
-                polarity: pol,
-                theta: 0.2,
+                target: pol as f64 * 0.2,
                 log_eps: 1e-5,
             };
             let pols = [pol, pol];
@@ -416,4 +415,34 @@ fn blur_loss_without_a_kernel_is_the_plain_loss_and_bayer_follows_rggb() {
     assert!((l - (0.09 + 0.04 + 0.01)).abs() < 1e-12);
     assert!((dc[0][0] - 2.0 * -0.3).abs() < 1e-12);
     assert_eq!([bayer(0.0, 0.0), bayer(1.0, 0.0), bayer(0.0, 1.0), bayer(1.0, 1.0), bayer(2.0, 4.0)], [0, 1, 1, 2, 0]);
+}
+
+#[test]
+fn an_event_window_hops_up_to_its_count_and_sums_polarities_times_thresholds() {
+    // one pixel: + + - + at 0..4 ms, then one more at 10 ms
+    let pol = [1i8, 1, -1, 1, 1];
+    let n = pol.len();
+    let ev = crate::data::events::Events {
+        x: vec![0.0; n],
+        y: vec![0.0; n],
+        t_us: vec![0.0, 1e3, 2e3, 3e3, 10e3],
+        polarity: pol.to_vec(),
+        successors: (0..n).map(|i| if i + 1 < n { (i + 1) as u32 } else { u32::MAX }).collect(),
+        ..Default::default()
+    };
+    let th = [0.25f32, 0.2];
+    let all = |_: f64| true;
+    // one hop: the successor's polarity times its threshold, exactly
+    assert_eq!(event_window(&ev, all, 0, 1, th), Some((1, 0.25)));
+    assert_eq!(event_window(&ev, all, 1, 1, th), Some((2, -0.2)));
+    // three hops from event 0: + - + = 2 * 0.25 - 0.2
+    let (k, target) = event_window(&ev, all, 0, 3, th).unwrap();
+    assert_eq!(k, 3);
+    assert!((target - 0.3).abs() < 1e-6, "{target}");
+    // the pixel's events end first: four hops at most from event 0
+    assert_eq!(event_window(&ev, all, 0, 9, th).map(|w| w.0), Some(4));
+    // the trajectory ends first (at 5 ms): the window stops at event 3
+    assert_eq!(event_window(&ev, |t| t <= 5e3, 0, 9, th).map(|w| w.0), Some(3));
+    // no successor, no window
+    assert_eq!(event_window(&ev, all, 4, 2, th), None);
 }

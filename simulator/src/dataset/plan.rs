@@ -40,8 +40,9 @@ pub const PIPELINE_VERSION: u32 = 10;
 /// alone (path-traced frames keep theirs): 2 = grids over triangles in their plane, glossy
 /// streams the same in every frame; 3 = glossy blocks sized by the lobe's width, glossy grids;
 /// 4 = glossy paths trace on from their second vertex, one segment shorter (no extra bounce);
-/// 5 = the texture footprint from unnormalised neighbour directions (rounding differs).
-pub const SURFACE_VERSION: u32 = 5;
+/// 5 = the texture footprint from unnormalised neighbour directions (rounding differs);
+/// 6 = a pixel's diffuse samples share the directional lights' BSDF (rounding differs).
+pub const SURFACE_VERSION: u32 = 6;
 
 /// The surface-cache part of a render key: surface version, paths per point, spacing bits,
 /// camera samples, glossy paths, glossy block, glossy stride, glossy-grid alpha bits.

@@ -250,9 +250,19 @@ impl Lights {
     /// Every delta light (point, spot, directional) as seen from `p`, with `pdf = 1`: the
     /// integrator adds all of them at each shading point.
     pub fn delta_incident<'s>(&self, scene: &'s Scene, p: Vec3) -> impl Iterator<Item = LightSample> + 's {
-        scene.lights.iter().filter_map(move |l| {
+        self.delta_incident_indexed(scene, p).map(|(_, ls)| ls)
+    }
+
+    /// [`Lights::delta_incident`] with each light's index in the scene's list (a spot light
+    /// that does not reach `p` is skipped, so the position in this sequence is not its index).
+    pub fn delta_incident_indexed<'s>(
+        &self,
+        scene: &'s Scene,
+        p: Vec3,
+    ) -> impl Iterator<Item = (usize, LightSample)> + 's {
+        scene.lights.iter().enumerate().filter_map(move |(k, l)| {
             let (wi, dist, radiance) = punctual_incident(l, p)?;
-            Some(LightSample { wi, dist, radiance, pdf: 1.0, is_delta: true })
+            Some((k, LightSample { wi, dist, radiance, pdf: 1.0, is_delta: true }))
         })
     }
 
@@ -361,6 +371,30 @@ mod tests {
             environment: if env { Environment::Constant(Vec3::splat(0.5)) } else { Environment::default() },
             ..Scene::default()
         }
+    }
+
+    /// A delta light's index is its place in the scene's list even where a spot light before
+    /// it does not reach the point (the shadow grids keep one slot per index).
+    #[test]
+    fn delta_lights_keep_their_scene_index() {
+        let mut s = scene(false);
+        let spot = PunctualLight::Spot {
+            position: Vec3::new(0.0, 5.0, 0.0),
+            direction: Vec3::Y,
+            intensity: Vec3::ONE,
+            inner_cone: 0.1,
+            outer_cone: 0.2,
+        };
+        let sun = PunctualLight::Directional { direction: -Vec3::Y, irradiance: Vec3::ONE };
+        s.lights = vec![spot, sun];
+        let lights = Lights::new(&s);
+        // the spot points up, away from the origin: only the sun reaches it, as light 1
+        let seen: Vec<usize> = lights.delta_incident_indexed(&s, Vec3::ZERO).map(|(k, _)| k).collect();
+        assert_eq!(seen, vec![1]);
+        // above the spot, inside its cone, both
+        let seen: Vec<usize> = lights.delta_incident_indexed(&s, Vec3::new(0.0, 9.0, 0.0)).map(|(k, _)| k).collect();
+        assert_eq!(seen, vec![0, 1]);
+        assert_eq!(lights.delta_incident(&s, Vec3::ZERO).count(), 1);
     }
 
     /// The density of `Lights::sample` for direction `d` from `p`: every emissive triangle the

@@ -18,7 +18,9 @@
 //! - the direct light of every delta light (the sun), with its BSDF and its visibility read
 //!   from a *shadow grid* over the triangle side, one shadow ray per point, with cells of half
 //!   the smallest pixel footprint the camera path gives the triangle: shadow edges stay sharp to
-//!   half a pixel, and its highlights follow the view;
+//!   half a pixel, and its highlights follow the view (when every delta light is directional,
+//!   the samples of a pixel on one triangle with one lobe shape share one BSDF evaluation,
+//!   affine in their texture's colour: see [`DiffuseRun`]);
 //! - its reflectance hint times the surface grid's value at the hit (bilinear).
 //!
 //! A sample on a glossy or metal surface adds its emission and its delta lights as above. The
@@ -50,11 +52,12 @@ use super::{offset_origin, FillSpec, FirstHit, PathMode, Renderer, SurfaceHit, T
 use crate::render::accel::Hit;
 use crate::render::bsdf::Bsdf;
 use crate::render::film::{Image, RenderSettings};
-use crate::render::lights::emitted_filtered;
+use crate::render::lights::{emitted_filtered, LightSample};
 use crate::render::radiance_cache::{CacheParams, RadianceCache};
 use crate::render::raster::Visibility;
 use crate::render::sampler::{pixel_key, SampleStream};
 use crate::render::sampling::power_heuristic;
+use crate::scene::PunctualLight;
 
 /// Added to a surface lattice side's key (apart from the radiance cache's lattices).
 const SURFACE_SALT: u64 = 2 << 40;
@@ -83,6 +86,32 @@ struct Sample {
     wo: Vec3,
     /// Index of its pixel in the band of rows being rendered.
     pixel: usize,
+}
+
+/// Cosine between two shading normals above which samples share a [`DiffuseRun`] (0.8 degrees).
+const RUN_NORMAL_COS: f32 = 0.9999;
+
+/// Most [`DiffuseRun`]s a pixel keeps open (an edge pixel alternates between its triangles).
+const MAX_RUNS: usize = 4;
+
+/// The mostly diffuse camera samples of one pixel on one triangle side whose BSDFs differ only
+/// in the base colour (a texture's) and whose shading normals agree within
+/// [`RUN_NORMAL_COS`], when every delta light is directional (at most three): the BSDF of the
+/// delta lights, affine in the base colour ([`Bsdf::eval_affine`]), is evaluated once for them.
+/// Each sample keeps its own texture, emission, shadow-grid visibility and surface-grid value
+/// (reading the surface grid once at the samples' mean point cost factory 300x200 0.961 ->
+/// 0.946 of the ceiling's pair r2).
+struct DiffuseRun {
+    /// The triangle.
+    prim: u32,
+    /// The first sample's surface (the shading frame and side).
+    sh: SurfaceHit,
+    /// The first sample's BSDF (its base colour is not used).
+    bsdf: Bsdf,
+    /// The first sample's direction to the camera, in its shading frame.
+    wo: Vec3,
+    /// Per delta light, the sum of visibility times base colour, and of visibility.
+    lit: [(Vec3, f32); 3],
 }
 
 /// The settings of the path a glossy path traces on from its second vertex
@@ -469,12 +498,20 @@ impl Renderer<'_> {
             0 => Vec::new(),
             stride => surface.glossy_frames(s.camera.origin(), stride, s.glossy_paths.max(1)),
         };
+        // the delta lights, when all are directional (the same from every point) and have
+        // shadow grids: the samples of a pixel then share their BSDF (see `DiffuseRun`)
+        let directional = |l: &PunctualLight| matches!(l, PunctualLight::Directional { .. });
+        let lights = &self.scene.lights;
+        let suns: Option<Vec<LightSample>> = (lights.len() <= 3 && lights.iter().all(directional))
+            .then(|| self.lights.delta_incident(self.scene, Vec3::ZERO).collect());
+        let suns = suns.as_deref();
         let bands: Vec<Vec<Vec3>> = (0..h.div_ceil(block))
             .into_par_iter()
             .map(|by| {
                 let rows = block.min(h - by * block);
                 let mut band = vec![Vec3::ZERO; (rows * w) as usize];
                 let mut samples = Vec::with_capacity((vis.samples * block * block) as usize);
+                let mut runs = Vec::with_capacity(MAX_RUNS);
                 for bx in 0..w.div_ceil(block) {
                     let cols = block.min(w - bx * block);
                     samples.clear();
@@ -492,6 +529,7 @@ impl Renderer<'_> {
                                 cache,
                                 pixel,
                                 &mut samples,
+                                (suns, &mut runs),
                             );
                         }
                     }
@@ -523,8 +561,10 @@ impl Renderer<'_> {
         cache: Option<&RadianceCache>,
         pixel: usize,
         samples: &mut Vec<Sample>,
+        (suns, runs): (Option<&[LightSample]>, &mut Vec<DiffuseRun>),
     ) -> Vec3 {
         let scene = self.scene;
+        runs.clear();
         let origin = s.camera.origin();
         let mut sum = Vec3::ZERO;
         // the camera spread (see `camera_spread`) as offsets of the unnormalised direction,
@@ -572,9 +612,83 @@ impl Renderer<'_> {
                 samples.push(Sample { hit, sh, bsdf, wo, pixel });
                 continue;
             }
-            sum += le + self.diffuse_light(s, &hit, &sh, &bsdf, wo, surface, cache);
+            sum += le;
+            match suns {
+                Some(suns) => self.join_run(runs, suns, hit, sh, bsdf, wo, surface, (s, cache), &mut sum),
+                None => sum += self.diffuse_light(s, &hit, &sh, &bsdf, wo, surface, cache),
+            }
+        }
+        for run in runs.drain(..) {
+            sum += self.run_light(&run, suns.unwrap_or_default());
         }
         sum
+    }
+
+    /// Add a mostly diffuse sample's surface-grid light to `sum` and its delta lights' terms to
+    /// the pixel's open [`DiffuseRun`] it belongs to, or to a new one (the oldest run's light
+    /// added to `sum` first when [`MAX_RUNS`] are open).
+    #[allow(clippy::too_many_arguments)]
+    fn join_run(
+        &self,
+        runs: &mut Vec<DiffuseRun>,
+        suns: &[LightSample],
+        hit: Hit,
+        sh: SurfaceHit,
+        bsdf: Bsdf,
+        wo: Vec3,
+        surface: &SurfaceCache,
+        (s, cache): (&RenderSettings, Option<&RadianceCache>),
+        sum: &mut Vec3,
+    ) {
+        let same = |r: &DiffuseRun| {
+            r.prim == hit.prim
+                && r.sh.front == sh.front
+                && r.bsdf.metallic == bsdf.metallic
+                && r.bsdf.specular == bsdf.specular
+                && r.bsdf.alpha == bsdf.alpha
+                && r.sh.frame.n.dot(sh.frame.n) >= RUN_NORMAL_COS
+        };
+        let (prim, front, p, ng) = (hit.prim, sh.front, sh.p, sh.ng);
+        let k = match runs.iter().position(same) {
+            Some(k) => k,
+            None => {
+                if runs.len() == MAX_RUNS {
+                    let old = runs.remove(0);
+                    *sum += self.run_light(&old, suns);
+                }
+                runs.push(DiffuseRun { prim, sh, bsdf, wo, lit: [(Vec3::ZERO, 0.0); 3] });
+                runs.len() - 1
+            }
+        };
+        let run = &mut runs[k];
+        let ng_side = if front { ng } else { -ng };
+        if suns.iter().any(|l| l.wi.dot(ng_side) > 0.0) {
+            let v = surface.shadow(prim, front, || self.fill_shadow(surface, prim, front)).at(p);
+            for (lit, v) in run.lit.iter_mut().zip(v.to_array()) {
+                lit.0 += bsdf.base_color * v;
+                lit.1 += v;
+            }
+        }
+        if s.max_depth >= 2 {
+            let grid = surface.grid(prim, front, || self.fill_surface(surface, cache, prim, front));
+            *sum += bsdf.albedo_hint() * grid.at(p);
+        }
+    }
+
+    /// The delta lights `suns` the samples of `run` reflect, summed: through the run's BSDF
+    /// (once, affine in each sample's base colour) times each sample's visibility.
+    fn run_light(&self, run: &DiffuseRun, suns: &[LightSample]) -> Vec3 {
+        let sh = &run.sh;
+        let ng_side = if sh.front { sh.ng } else { -sh.ng };
+        let mut l = Vec3::ZERO;
+        for (ls, &(lit_base, lit)) in suns.iter().zip(&run.lit) {
+            if ls.wi.dot(ng_side) <= 0.0 || lit == 0.0 {
+                continue;
+            }
+            let (a, b) = run.bsdf.eval_affine(run.wo, sh.frame.to_local(ls.wi));
+            l += (lit_base * a + Vec3::splat(lit * b)) * ls.radiance / ls.pdf;
+        }
+        l
     }
 
     /// The light a mostly diffuse surface point reflects towards `wo`: its reflectance hint
@@ -606,7 +720,8 @@ impl Renderer<'_> {
         let mut l = Vec3::ZERO;
         let ng_side = if sh.front { sh.ng } else { -sh.ng };
         let mut visibility = None;
-        for (k, ls) in self.lights.delta_incident(self.scene, sh.p).enumerate() {
+        // (k is the light's index in the scene: the shadow grids' slot for the first three)
+        for (k, ls) in self.lights.delta_incident_indexed(self.scene, sh.p) {
             if ls.wi.dot(ng_side) <= 0.0 {
                 continue;
             }
@@ -821,7 +936,7 @@ impl Renderer<'_> {
         Grid::over(corners, spacing, MAX_SHADOW_STEPS, |_, q| {
             let p_off = offset_origin(q, n);
             let mut v = [0u8; 3];
-            for (k, ls) in self.lights.delta_incident(self.scene, q).take(3).enumerate() {
+            for (k, ls) in self.lights.delta_incident_indexed(self.scene, q).filter(|(k, _)| *k < 3) {
                 let tmax = if ls.dist.is_finite() { ls.dist * (1.0 - 1e-4) - 1e-4 } else { f32::INFINITY };
                 v[k] = u8::from(ls.wi.dot(n) > 0.0 && !self.accel.occluded(p_off, ls.wi, 0.0, tmax));
             }

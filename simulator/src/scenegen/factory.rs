@@ -521,15 +521,18 @@ scene = "scene.gltf"
 # fast hand-held motion, about 1 s
 {traj}
 # defaults: the paper's 600x400, 1000 FPS, 40 ms exposure and threshold 0.2 ([events]);
-# surface-cache frames, 32 camera samples, glossy keyframes every 32 frames
+# surface-cache frames, 32 camera samples
 # max_depth 3 (direct light plus one bounce) keeps 1000 frames affordable in this open hall;
 # glossy_grid_alpha 0.05: the paints' highlights at grazing angles (alpha 0.06 to 0.09) read the
-# glossy grids, for half the frame time at the same fidelity (`evsim dataset-fidelity`)
+# glossy grids, for half the frame time at the same fidelity (`evsim dataset-fidelity`);
+# glossy keyframes every 128 frames: the rough lobes' light changes slowly along this path
+# (the same fidelity as every 32, 4% less time: benchmark/results/2026-12-05-dataset-time.md)
 [dataset]
 views = 30
 sharp_every = 8
 max_depth = 3
 glossy_grid_alpha = 0.05
+glossy_stride = 128
 "#,
         camera_and_sky = super::camera_path::camera_and_sky(EYE, TARGET, FOV_Y_DEG, 2, [0.42, 0.47, 0.55]),
         traj = keys_toml(&keys()),

@@ -670,9 +670,23 @@ impl Renderer<'_> {
             }
         }
         if s.max_depth >= 2 {
-            let grid = surface.grid(prim, front, || self.fill_surface(surface, cache, prim, front));
-            *sum += bsdf.albedo_hint() * grid.at(p);
+            *sum += self.grid_light(prim, front, p, &bsdf, surface, cache);
         }
+    }
+
+    /// The non-delta light a mostly diffuse point `p` of triangle `prim`'s `front` (or back)
+    /// side reflects: its reflectance hint times the surface grid there.
+    fn grid_light(
+        &self,
+        prim: u32,
+        front: bool,
+        p: Vec3,
+        bsdf: &Bsdf,
+        surface: &SurfaceCache,
+        cache: Option<&RadianceCache>,
+    ) -> Vec3 {
+        let grid = surface.grid(prim, front, || self.fill_surface(surface, cache, prim, front));
+        bsdf.albedo_hint() * grid.at(p)
     }
 
     /// The delta lights `suns` the samples of `run` reflect, summed: through the run's BSDF
@@ -709,8 +723,7 @@ impl Renderer<'_> {
         if s.max_depth < 2 {
             return l;
         }
-        let grid = surface.grid(hit.prim, sh.front, || self.fill_surface(surface, cache, hit.prim, sh.front));
-        l + bsdf.albedo_hint() * grid.at(sh.p)
+        l + self.grid_light(hit.prim, sh.front, sh.p, bsdf, surface, cache)
     }
 
     /// The direct light of the delta lights at a surface point, reflected towards `wo`: each

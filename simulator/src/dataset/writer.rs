@@ -44,6 +44,7 @@ use crate::image_io::write_atomic;
 use crate::npy::{write_npy, write_npz, NpyArray};
 use crate::render::film::{Image, RenderSettings};
 use crate::render::integrator::Renderer;
+use crate::render::radiance_cache::FillTimes;
 use crate::trajectory::{LlffCamera, Pose, TrajectoryConfig};
 
 /// Every `DEPTH_STRIDE`-th pixel (in x and y) is traced for the depth bounds.
@@ -100,6 +101,9 @@ pub struct Summary {
     /// Peak resident memory (bytes) of the process during the frame stages (render, events,
     /// exposure), the sharp renders and the metadata, when the OS reports it (Linux).
     pub peak_rss: [Option<u64>; 3],
+    /// Thread time of the renders' lazily filled caches, by kind
+    /// ([`Renderer::fill_times`]).
+    pub fill_times: Vec<(&'static str, FillTimes)>,
 }
 
 /// Reset the peak resident set size (Linux: `5` into `/proc/self/clear_refs`), so that the next
@@ -314,6 +318,7 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
         pending = Some(f);
     }
     let tail = tail.finish()?;
+    summary.fill_times = renderer.fill_times().to_vec();
     let t = Instant::now();
     let written = sink.finish().map_err(|e| DatasetError::io(&events_path, "cannot complete", e))?;
     summary.events_time += t.elapsed();

@@ -22,7 +22,7 @@ use super::accel::{Accel, BvhPreset, Hit};
 use super::bsdf::Bsdf;
 use super::film::{Image, RenderSettings};
 use super::lights::{emitted_filtered, Lights};
-use super::radiance_cache::{lattice_bary, lattice_index, steps_for, CacheParams, Lattice, RadianceCache};
+use super::radiance_cache::{lattice_bary, lattice_index, steps_for, CacheParams, FillTimes, Lattice, RadianceCache};
 use super::raster::{rasterise, FilmOffsets, Visibility};
 use super::sampler::{pixel_key, SampleStream, SamplerKind};
 use super::sampling::{power_heuristic, Frame};
@@ -270,6 +270,26 @@ impl<'a> Renderer<'a> {
                 Some(c)
             }
         }
+    }
+
+    /// Time spent so far on the fills of the caches held now, by kind: radiance-cache lattices
+    /// (both), surface grids, shadow grids, glossy grids ([`super::radiance_cache::FillClock`]; a surface or glossy
+    /// grid's time includes the lattices its paths filled).
+    pub fn fill_times(&self) -> [(&'static str, FillTimes); 4] {
+        let cache = self.cache.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map(|c| c.clock.times());
+        let surface = self
+            .surface
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+            .map(|c| c.clocks.each_ref().map(|k| k.times()));
+        let [grids, shadows, glossy] = surface.unwrap_or_default();
+        [
+            ("radiance cache", cache.unwrap_or_default()),
+            ("surface grids", grids),
+            ("shadow grids", shadows),
+            ("glossy grids", glossy),
+        ]
     }
 
     /// The parameters of a cache's paths for the render settings `s`: `paths` per point,

@@ -36,7 +36,9 @@
 //! the glossy reflections of mostly diffuse surfaces; the gain is a camera sample with no bounce
 //! ray and indirect light that does not flicker.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
+use std::time::{Duration, Instant};
 
 use glam::{Vec2, Vec3};
 
@@ -70,6 +72,66 @@ pub struct CacheParams {
     pub first: bool,
 }
 
+/// Thread time spent on lazily filled lattices or grids of one kind: computing them, and
+/// waiting for the one another thread is computing (both summed over threads). A fill's time
+/// includes the fills it sets off (a surface grid's paths fill radiance-cache lattices).
+#[derive(Debug, Default)]
+pub struct FillClock {
+    fills: AtomicU64,
+    fill_ns: AtomicU64,
+    wait_ns: AtomicU64,
+}
+
+/// What a [`FillClock`] measured so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FillTimes {
+    /// Lattices or grids computed.
+    pub fills: u64,
+    /// Thread time computing them.
+    pub fill: Duration,
+    /// Thread time waiting for another thread's fill.
+    pub wait: Duration,
+}
+
+impl FillClock {
+    /// `cell`'s value, computed by `fill` on first use (timed, as is a wait for another
+    /// thread's fill of it).
+    #[inline]
+    pub fn get_or_fill<'a, T>(&self, cell: &'a OnceLock<T>, fill: impl FnOnce() -> T) -> &'a T {
+        match cell.get() {
+            Some(v) => v,
+            None => self.timed(cell, fill),
+        }
+    }
+
+    #[cold]
+    fn timed<'a, T>(&self, cell: &'a OnceLock<T>, fill: impl FnOnce() -> T) -> &'a T {
+        let t = Instant::now();
+        let mut filled = false;
+        let v = cell.get_or_init(|| {
+            filled = true;
+            fill()
+        });
+        let ns = t.elapsed().as_nanos() as u64;
+        if filled {
+            self.fills.fetch_add(1, Ordering::Relaxed);
+            self.fill_ns.fetch_add(ns, Ordering::Relaxed);
+        } else {
+            self.wait_ns.fetch_add(ns, Ordering::Relaxed);
+        }
+        v
+    }
+
+    /// What it measured so far.
+    pub fn times(&self) -> FillTimes {
+        FillTimes {
+            fills: self.fills.load(Ordering::Relaxed),
+            fill: Duration::from_nanos(self.fill_ns.load(Ordering::Relaxed)),
+            wait: Duration::from_nanos(self.wait_ns.load(Ordering::Relaxed)),
+        }
+    }
+}
+
 /// The cache of one scene (see the [module docs](self)); filled lazily.
 pub struct RadianceCache {
     /// Its parameters.
@@ -78,6 +140,8 @@ pub struct RadianceCache {
     sides: Vec<[OnceLock<Lattice>; 2]>,
     /// The same for the indirect light at the first vertex (empty unless `params.first`).
     indirect: Vec<[OnceLock<Lattice>; 2]>,
+    /// Time spent on both lattices' fills.
+    pub clock: FillClock,
 }
 
 /// One triangle side's lattice.
@@ -94,7 +158,7 @@ impl RadianceCache {
     pub fn new(params: CacheParams, triangles: usize) -> RadianceCache {
         let sides = |n: usize| (0..n).map(|_| [OnceLock::new(), OnceLock::new()]).collect();
         let indirect = sides(if params.first { triangles } else { 0 });
-        RadianceCache { params, sides: sides(triangles), indirect }
+        RadianceCache { params, sides: sides(triangles), indirect, clock: FillClock::default() }
     }
 
     /// The first-vertex lattice of triangle `prim`'s `front` (or back) side, computed by `fill`
@@ -105,13 +169,13 @@ impl RadianceCache {
     /// `params.first`.
     #[inline]
     pub fn indirect_lattice(&self, prim: u32, front: bool, fill: impl FnOnce() -> Lattice) -> &Lattice {
-        self.indirect[prim as usize][usize::from(!front)].get_or_init(fill)
+        self.clock.get_or_fill(&self.indirect[prim as usize][usize::from(!front)], fill)
     }
 
     /// The lattice of triangle `prim`'s `front` (or back) side, computed by `fill` on first use.
     #[inline]
     pub fn lattice(&self, prim: u32, front: bool, fill: impl FnOnce() -> Lattice) -> &Lattice {
-        self.sides[prim as usize][usize::from(!front)].get_or_init(fill)
+        self.clock.get_or_fill(&self.sides[prim as usize][usize::from(!front)], fill)
     }
 
     /// Triangle sides filled so far and their lattice points (both lattices).
@@ -217,6 +281,38 @@ mod tests {
                 assert!((l.at(b) - f(b)).abs().max_element() < 1e-4, "r {r} at {b}: {} vs {}", l.at(b), f(b));
             }
         }
+    }
+
+    #[test]
+    fn fill_clock_counts_each_fill_once_and_times_a_wait() {
+        let clock = FillClock::default();
+        let cell = OnceLock::new();
+        let calls = AtomicU64::new(0);
+        let fill = || {
+            calls.fetch_add(1, Ordering::Relaxed);
+            7u32
+        };
+        assert_eq!(*clock.get_or_fill(&cell, fill), 7);
+        assert_eq!(*clock.get_or_fill(&cell, || unreachable!("the cell is filled")), 7);
+        let t = clock.times();
+        assert_eq!((t.fills, calls.load(Ordering::Relaxed), t.wait), (1, 1, Duration::ZERO));
+        // a second thread that needs the cell while the first fills it waits, and is timed
+        let (clock, cell) = (FillClock::default(), OnceLock::new());
+        let (started, go) = std::sync::mpsc::channel();
+        std::thread::scope(|scope| {
+            scope.spawn(|| {
+                clock.get_or_fill(&cell, || {
+                    started.send(()).unwrap();
+                    std::thread::sleep(Duration::from_millis(30));
+                    1u8
+                })
+            });
+            go.recv().unwrap();
+            assert_eq!(*clock.get_or_fill(&cell, || 2u8), 1, "the first fill's value");
+        });
+        let t = clock.times();
+        assert_eq!(t.fills, 1);
+        assert!(t.fill >= Duration::from_millis(30) && t.wait > Duration::ZERO, "{t:?}");
     }
 
     #[test]

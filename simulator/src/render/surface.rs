@@ -53,7 +53,7 @@ use crate::render::accel::Hit;
 use crate::render::bsdf::Bsdf;
 use crate::render::film::{Image, RenderSettings};
 use crate::render::lights::{emitted_filtered, LightSample};
-use crate::render::radiance_cache::{CacheParams, RadianceCache};
+use crate::render::radiance_cache::{CacheParams, FillClock, RadianceCache};
 use crate::render::raster::Visibility;
 use crate::render::sampler::{pixel_key, SampleStream};
 use crate::render::sampling::power_heuristic;
@@ -281,7 +281,7 @@ impl<T: GridValue> Grid<T> {
 
     /// The value at the surface point `p` (bilinear in its cell; outside the grid, at the
     /// nearest edge).
-    #[inline]
+    #[inline(always)]
     pub fn at(&self, p: Vec3) -> Vec3 {
         let d = p - self.origin;
         let (u, v) = (d.dot(self.ax), d.dot(self.ay));
@@ -328,6 +328,8 @@ pub struct SurfaceCache {
     pixel_angle: f32,
     /// The glossy grids of the keyframes in use (see [`GlossyFrame`]).
     glossy: std::sync::Mutex<Vec<Arc<GlossyFrame>>>,
+    /// Time spent on the surface, shadow and glossy grids' fills.
+    pub clocks: [FillClock; 3],
 }
 
 /// The glossy grids of one keyframe of the camera path: per triangle side, the light its
@@ -355,14 +357,14 @@ impl SurfaceCache {
     /// The grid of triangle `prim`'s `front` (or back) side, computed by `fill` on first use.
     #[inline]
     pub fn grid(&self, prim: u32, front: bool, fill: impl FnOnce() -> Grid) -> &Grid {
-        self.sides[prim as usize][usize::from(!front)].get_or_init(fill)
+        self.clocks[0].get_or_fill(&self.sides[prim as usize][usize::from(!front)], fill)
     }
 
     /// The shadow lattice of triangle `prim`'s `front` (or back) side, computed by `fill` on
     /// first use.
     #[inline]
     pub fn shadow(&self, prim: u32, front: bool, fill: impl FnOnce() -> Grid<[u8; 3]>) -> &Grid<[u8; 3]> {
-        self.shadows[prim as usize][usize::from(!front)].get_or_init(fill)
+        self.clocks[1].get_or_fill(&self.shadows[prim as usize][usize::from(!front)], fill)
     }
 
     /// Triangle sides filled so far and their points computed.
@@ -478,6 +480,7 @@ impl Renderer<'_> {
                     cameras,
                     pixel_angle,
                     glossy: Default::default(),
+                    clocks: Default::default(),
                 });
                 *slot = Some(c.clone());
                 c
@@ -604,7 +607,7 @@ impl Renderer<'_> {
                     let mut g = Vec3::ZERO;
                     for (frame, w) in glossy {
                         let fill = || self.fill_glossy(s, surface, hit.prim, sh.front, frame);
-                        g += frame.sides[hit.prim as usize][side].get_or_init(fill).at(sh.p) * *w;
+                        g += surface.clocks[2].get_or_fill(&frame.sides[hit.prim as usize][side], fill).at(sh.p) * *w;
                     }
                     sum += bsdf.albedo_hint() * g;
                     continue;

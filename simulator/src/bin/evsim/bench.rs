@@ -10,7 +10,9 @@
 //! `evsim bench dataset [SCENE]`: writes the scene's whole dataset (default `scenes/cbox`, the
 //! paper's settings) into a fresh temporary folder and cache, and prints per stage the wall
 //! time, frames/s and peak memory, and the total (the stages after rendering run beside the
-//! renders, so their times overlap).
+//! renders, so their times overlap), then the thread time the lazily filled caches took (radiance
+//! cache lattices, surface, shadow and glossy grids) and the time threads waited for another
+//! thread's fill.
 //!
 //! `evsim bench frames [SCENE]`: the frame stage of a dataset on a short segment: renders the
 //! temporal window around `--frames` consecutive frames (at the scene's dataset settings), then
@@ -215,6 +217,7 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
         simulator::dataset::writer::render_frame(&renderer, &again, &plan);
         println!("  the last frame again (grids filled): {:.3} s", t.elapsed().as_secs_f64());
     }
+    print_fill_times(&renderer.fill_times());
     let col = |i: usize| median(&rows.iter().map(|r| r[i]).collect::<Vec<_>>());
     let mean = |i: usize| rows.iter().map(|r| r[i]).sum::<f64>() / rows.len().max(1) as f64;
     println!("  per frame ({} frames):   median     mean", rows.len());
@@ -556,5 +559,20 @@ fn dataset_bench(b: &DatasetBench) -> Result<()> {
         total / 60.0,
         s.events_on + s.events_off
     );
+    print_fill_times(&s.fill_times);
     Ok(())
+}
+
+/// Print the thread time of the caches' fills and of waits for another thread's fill.
+fn print_fill_times(times: &[(&str, simulator::render::radiance_cache::FillTimes)]) {
+    println!("cache fills (thread time, summed over threads; a grid's time includes the lattices it filled):");
+    for (name, t) in times.iter().filter(|(_, t)| t.fills > 0) {
+        println!(
+            "  {:<16} {:7} filled {:8.1} s   waiting for another thread's fill {:7.1} s",
+            name,
+            t.fills,
+            t.fill.as_secs_f64(),
+            t.wait.as_secs_f64()
+        );
+    }
 }

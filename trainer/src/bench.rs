@@ -4,15 +4,26 @@
 //!
 //! The reference step of the trainer issue: 1024 rays x 128 samples through the reference
 //! coarse level (VM 256^3 [64,16,16] -> 32, 64-wide MLPs), one sampling pass.
+//!
+//! [`time_family`]: a preset's whole step (its blur model, events, AWP) on a trained field and
+//! its dataset, the dense engine and the one that skips samples alternating step by step, with
+//! the samples each evaluated per ray (`evtrain bench --run RUN`). On synthetic rays through a
+//! fresh field the densities are noise, so only a trained field says what skipping saves.
 
 use std::time::Instant;
 
+use crate::checkpoint::Checkpoint;
 use crate::config::TrainConfig;
+use crate::data::dataset::Dataset;
 use crate::engine::adam::Adam;
-use crate::engine::model::{Model, ModelConfig};
+use crate::engine::model::{Aabb, Model, ModelConfig};
+use crate::engine::params::Layout;
+use crate::engine::renderer::SampleCounts;
 use crate::engine::rng::Rng;
-use crate::presets::{nerf, paper_model, Scale};
-use crate::train::{image_step, PreparedRay, StepBuffers};
+use crate::error::TrainError;
+use crate::method::Method;
+use crate::presets::{self, nerf, paper_model, Scale};
+use crate::train::{image_step, PreparedRay, StepBuffers, Trainer};
 
 /// Timing of one benchmarked step shape.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -74,9 +85,7 @@ pub fn time_steps(name: &str, cfg: &TrainConfig, reps: usize, threads: usize) ->
             times_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         }
     }
-    let mut sorted = times_ms.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median_ms = sorted[sorted.len() / 2];
+    let median_ms = median(&times_ms);
     let spr = cfg.model.n_coarse + if cfg.model.n_fine > 0 { model.samples_fine() } else { 0 };
     let macs = cfg.model.n_coarse * model.coarse.macs_per_sample()
         + if cfg.model.n_fine > 0 { model.samples_fine() * model.fine_field().macs_per_sample() } else { 0 };
@@ -90,4 +99,128 @@ pub fn time_steps(name: &str, cfg: &TrainConfig, reps: usize, threads: usize) ->
         gflops: flops / (median_ms * 1e-3) / 1e9,
         threads,
     }
+}
+
+/// The preset families `evtrain bench --run` times, as (family, preset): one preset per way a
+/// step renders rays.
+pub const FAMILIES: &[(&str, &str)] = &[
+    ("plain", "nerf"),
+    ("rigid kernel + AWP", "dp-nerf"),
+    ("DSK", "deblur-nerf"),
+    ("PDRF", "pdrf"),
+    ("trajectory", "bad-nerf"),
+    ("event batch", "e-nerf"),
+    ("full method", "ev-deblurnerf"),
+];
+
+/// One engine path's steps in a [`FamilyTiming`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct PathTiming {
+    /// Per-step wall times (ms), in run order.
+    pub times_ms: Vec<f64>,
+    /// Median (ms).
+    pub median_ms: f64,
+    /// Samples volume-rendered per ray (both passes).
+    pub rendered_per_ray: f64,
+    /// Samples whose density the field evaluated, per ray.
+    pub density_per_ray: f64,
+    /// Samples that went through the whole field (colour, backward), per ray.
+    pub alive_per_ray: f64,
+}
+
+/// A preset's step on a trained field, the dense engine against the one that skips samples.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct FamilyTiming {
+    /// The family.
+    pub family: String,
+    /// The preset timed for it.
+    pub preset: String,
+    /// Tensors of the preset's layout that start from the trained run (the rest start fresh).
+    pub from_run: usize,
+    /// Tensors of the preset's layout.
+    pub tensors: usize,
+    /// Every sample through the whole field (`model.dense = true`).
+    pub dense: PathTiming,
+    /// Samples of zero density skipped, the coarse evaluations re-used (the default).
+    pub skipping: PathTiming,
+}
+
+/// Times `reps` steps (after one warm-up) of `preset` at the cpu scale, on both engine paths,
+/// alternating a dense step and a skipping step so both see the same machine. The field starts
+/// from `trained` (tensors with the same name and size as the preset's), fitted to the same
+/// box `bounds`, at step `iterations / 2` (blur models, events and schedules switched on), with
+/// a fresh optimiser; `threads` workers (0: all cores).
+#[allow(clippy::too_many_arguments)]
+pub fn time_family(
+    family: &str,
+    preset: &str,
+    data: &Dataset,
+    trained_layout: &Layout,
+    trained: &[f32],
+    bounds: Option<Aabb>,
+    reps: usize,
+    threads: usize,
+) -> Result<FamilyTiming, TrainError> {
+    let build = presets::preset(preset)
+        .ok_or_else(|| TrainError::Config(format!("bench: no preset {preset} (presets: {:?})", presets::names())))?
+        .build;
+    let mut cfg = build(Scale::Cpu);
+    cfg.model.bounds = bounds;
+    cfg.threads = threads;
+    let mut from_run = 0;
+    let mut make = |dense: bool| -> Result<Trainer, TrainError> {
+        let mut cfg = cfg.clone();
+        cfg.model.dense = dense;
+        let method = Method::new(&cfg, data.views.len());
+        let mut params = method.init(cfg.seed);
+        from_run = 0;
+        for t in &method.layout().tensors {
+            if let Some(src) =
+                trained_layout.tensors.iter().find(|s| s.name == t.name && s.range.len() == t.range.len())
+            {
+                params[t.range.clone()].copy_from_slice(&trained[src.range.clone()]);
+                from_run += 1;
+            }
+        }
+        let adam = Adam::new(method.layout());
+        let ck = Checkpoint { step: cfg.iterations / 2, seconds: 0.0, params, adam };
+        Trainer::new(data, cfg, Some(ck))
+    };
+    let (mut dense, mut skipping) = (make(true)?, make(false)?);
+    let tensors = skipping.method.layout().tensors.len();
+    dense.step();
+    skipping.step();
+    let (c0, k0) = (dense.sample_counts(), skipping.sample_counts());
+    let (mut td, mut tk) = (Vec::with_capacity(reps), Vec::with_capacity(reps));
+    for _ in 0..reps {
+        for (trainer, times) in [(&mut dense, &mut td), (&mut skipping, &mut tk)] {
+            let t0 = Instant::now();
+            trainer.step();
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let path = |times: Vec<f64>, before: SampleCounts, after: SampleCounts| {
+        let rays = (after.rays - before.rays).max(1) as f64;
+        PathTiming {
+            median_ms: median(&times),
+            times_ms: times,
+            rendered_per_ray: (after.rendered - before.rendered) as f64 / rays,
+            density_per_ray: (after.density - before.density) as f64 / rays,
+            alive_per_ray: (after.alive - before.alive) as f64 / rays,
+        }
+    };
+    Ok(FamilyTiming {
+        family: family.to_string(),
+        preset: preset.to_string(),
+        from_run,
+        tensors,
+        dense: path(td, c0, dense.sample_counts()),
+        skipping: path(tk, k0, skipping.sample_counts()),
+    })
+}
+
+fn median(times: &[f64]) -> f64 {
+    let mut sorted = times.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN)
 }

@@ -36,7 +36,7 @@ use crate::engine::model::Model;
 use crate::engine::parallel::GradBuffers;
 use crate::engine::params::Layout;
 use crate::engine::real::Real;
-use crate::engine::renderer::{PassSamples, RayChunk, RayGrad, Renderer};
+use crate::engine::renderer::{PassSamples, RayChunk, RayGrad, Renderer, SampleCounts};
 use crate::engine::rng::Rng;
 use crate::error::TrainError;
 use crate::events::ecrf::{Ecrf, EcrfWorkspace};
@@ -390,6 +390,16 @@ impl StepBuffers {
     /// Buffers for `threads` workers (the cut of every batch, hence the reproducibility unit).
     pub fn new(threads: usize) -> StepBuffers {
         StepBuffers { grads: GradBuffers::default(), workers: vec![Worker::default(); threads.max(1)], sum: Vec::new() }
+    }
+
+    /// The samples every worker has rendered and evaluated so far.
+    pub fn sample_counts(&self) -> SampleCounts {
+        self.workers.iter().map(|w| w.renderer.counts()).fold(SampleCounts::default(), |a, b| SampleCounts {
+            rays: a.rays + b.rays,
+            rendered: a.rendered + b.rendered,
+            density: a.density + b.density,
+            alive: a.alive + b.alive,
+        })
     }
 }
 

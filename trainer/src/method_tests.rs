@@ -35,6 +35,7 @@ fn tiny_model() -> ModelConfig {
         tv_plane: 0.0,
         tv_line: 0.0,
         explicit: true,
+        dense: false,
         bounds: Some(Aabb { min: [-1.2, -1.2, -1.0], max: [1.2, 1.2, 1.0] }),
     }
 }

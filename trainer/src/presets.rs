@@ -140,6 +140,7 @@ pub fn paper_model() -> ModelConfig {
         tv_plane: 1e-2 * 5.0,
         tv_line: 1e-3 * 5.0,
         explicit: true,
+        dense: false,
         bounds: None,
     }
 }

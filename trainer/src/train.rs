@@ -306,6 +306,11 @@ impl<'a> Trainer<'a> {
         Checkpoint { step: self.step, seconds: self.seconds, params: self.params.clone(), adam: self.adam.clone() }
     }
 
+    /// The samples this trainer's steps have rendered and evaluated so far.
+    pub fn sample_counts(&self) -> crate::engine::renderer::SampleCounts {
+        self.engine.sample_counts()
+    }
+
     /// One iteration; returns its losses.
     pub fn step(&mut self) -> StepLosses {
         let t0 = Instant::now();

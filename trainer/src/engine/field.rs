@@ -48,6 +48,8 @@ pub struct Field {
 #[derive(Clone, Debug, Default)]
 pub struct FieldWorkspace<R> {
     cap: usize,
+    /// Rows the activations hold (set by the forward, reduced by a `keep`).
+    rows: usize,
     /// Raw VM components per volume (p x n_comps).
     comps: Vec<Vec<R>>,
     /// Density MLP input: volume features then PE(x) (p x d_in).
@@ -147,8 +149,17 @@ impl Field {
         sigma: &mut [R],
         rgb: &mut [[R; 3]],
     ) {
+        self.forward_density(params, ws, pos, sigma);
+        self.forward_colour(params, ws, None, dir, rgb);
+    }
+
+    /// The first half of [`forward`](Self::forward): volume features, positional encoding and
+    /// the density MLP over `p` samples; writes the raw density into `sigma` (p) and keeps the
+    /// activations in `ws` for [`forward_colour`](Self::forward_colour).
+    pub fn forward_density<R: Real>(&self, params: &[R], ws: &mut FieldWorkspace<R>, pos: &[[R; 3]], sigma: &mut [R]) {
         let p = pos.len();
         self.reserve(ws, p);
+        ws.rows = p;
         let dd = self.d_density_in();
         // Volume features, then PE(x), side by side in the density input.
         let mut col = 0;
@@ -165,13 +176,56 @@ impl Field {
             encoding::encode(*x, self.shape.pe_pos, &mut ws.x_density[i * dd + col..i * dd + col + pw]);
         }
         forward_stack(&self.density, params, p, &ws.x_density, self.d_density_in(), &mut ws.h_density);
+        let nf = self.shape.features;
+        let out = ws.h_density.last().expect("density MLP has an output layer");
+        for i in 0..p {
+            sigma[i] = out[i * (1 + nf)];
+        }
+    }
+
+    /// The second half of [`forward`](Self::forward), after
+    /// [`forward_density`](Self::forward_density): with `keep` (increasing row indices), first
+    /// drops every other row from `ws` (rows `keep[j]` move to `j`), so the colour MLP and the
+    /// [`backward`](Self::backward) then see only the kept samples; `dir` and `rgb` have one
+    /// entry per kept row (per row without `keep`).
+    pub fn forward_colour<R: Real>(
+        &self,
+        params: &[R],
+        ws: &mut FieldWorkspace<R>,
+        keep: Option<&[u32]>,
+        dir: &[[R; 3]],
+        rgb: &mut [[R; 3]],
+    ) {
+        if let Some(keep) = keep {
+            debug_assert!(keep.windows(2).all(|w| w[0] < w[1]), "forward_colour: keep is not increasing");
+            if keep.len() < ws.rows {
+                // In place: keep[j] >= j, so walking up never overwrites a row still to move.
+                let compact = |buf: &mut [R], width: usize| {
+                    for (j, &k) in keep.iter().enumerate() {
+                        let k = k as usize;
+                        if k != j {
+                            buf.copy_within(k * width..(k + 1) * width, j * width);
+                        }
+                    }
+                };
+                for (v, comps) in self.volumes.iter().zip(&mut ws.comps) {
+                    compact(comps, v.n_comps());
+                }
+                compact(&mut ws.x_density, self.d_density_in());
+                for (l, h) in self.density.iter().zip(&mut ws.h_density) {
+                    compact(h, l.n_out);
+                }
+                ws.rows = keep.len();
+            }
+        }
+        let p = ws.rows;
+        assert_eq!(dir.len(), p, "forward_colour: {} directions for {p} rows", dir.len());
         // Features (after the raw density) and PE(d) form the colour input.
         let nf = self.shape.features;
         let dc = self.d_colour_in();
         let out = ws.h_density.last().expect("density MLP has an output layer");
         let dw = encoding::width(self.shape.pe_dir);
         for i in 0..p {
-            sigma[i] = out[i * (1 + nf)];
             ws.x_colour[i * dc..i * dc + nf].copy_from_slice(&out[i * (1 + nf) + 1..(i + 1) * (1 + nf)]);
             encoding::encode(dir[i], self.shape.pe_dir, &mut ws.x_colour[i * dc + nf..i * dc + nf + dw]);
         }
@@ -187,12 +241,6 @@ impl Field {
     pub fn features<'a, R: Real>(&self, ws: &'a FieldWorkspace<R>, i: usize) -> &'a [R] {
         let (dc, nf) = (self.d_colour_in(), self.shape.features);
         &ws.x_colour[i * dc..i * dc + nf]
-    }
-
-    /// Every sample's [`features`](Self::features) in the last forward on `ws`: (rows, stride);
-    /// sample i's are `rows[i * stride..i * stride + features]`.
-    pub fn feature_rows<'a, R: Real>(&self, ws: &'a FieldWorkspace<R>) -> (&'a [R], usize) {
-        (&ws.x_colour, self.d_colour_in())
     }
 
     /// Backward of the last [`forward`](Self::forward) on `ws`: accumulates parameter gradients
@@ -213,6 +261,7 @@ impl Field {
         d_dir: Option<&mut [[R; 3]]>,
     ) {
         let p = pos.len();
+        assert_eq!(p, ws.rows, "Field::backward: {p} positions for the {} rows of the last forward", ws.rows);
         let nf = self.shape.features;
         let dc = self.d_colour_in();
         let dd = self.d_density_in();

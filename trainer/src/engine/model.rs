@@ -74,6 +74,11 @@ pub struct ModelConfig {
     /// V_c,f" row; the MLPs then see only the positional encoding).
     #[serde(default = "explicit_default")]
     pub explicit: bool,
+    /// Evaluate every sample through the whole field, as the engine did before it skipped
+    /// samples ([`renderer`](super::renderer)'s module doc): the same result up to rounding and
+    /// the density-noise draw, slower; kept to compare against.
+    #[serde(default)]
+    pub dense: bool,
     /// The NDC box the volumes cover; `None` in a preset means "fit it to the dataset's
     /// cameras" (`trainer::train::scene_bounds`), and a run records the resolved box.
     pub bounds: Option<Aabb>,

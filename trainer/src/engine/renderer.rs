@@ -3,6 +3,21 @@
 //! sorted union, volume rendering again (NeRF's hierarchical sampling); and the whole chain
 //! backward from dL/dC of both passes to the parameters.
 //!
+//! **Skipped samples.** A sample whose density after the noise and the ReLU is zero has
+//! alpha = 0 and weight 0 exactly, and its ReLU passes no gradient: it adds nothing to the
+//! colour and nothing to any gradient (its colour's gradient is its weight times dL/dC, its
+//! position's flows only through the density and the colour). So the field evaluates the
+//! density of every sample, and the colour MLP and the whole backward only for the alive ones
+//! (the rows are compacted in place, [`Field::forward_colour`]); a skipped sample's features
+//! read as zero (a loss on them must weigh them by the render weight, as the AWP's does). And
+//! when one field serves both passes (no fine level), the fine pass re-uses the coarse
+//! samples' evaluations and evaluates only the importance samples; each coarse sample's
+//! gradients from both passes are summed before its one backward. The results are the dense
+//! engine's up to rounding, except that a re-used coarse sample keeps its coarse density noise
+//! in the fine pass (the dense engine draws it again). `ModelConfig::dense` keeps the dense
+//! engine (every sample through the whole field, the union evaluated again) to compare against;
+//! [`SampleCounts`] says how many samples each path evaluated.
+//!
 //! Rays are in NDC (near 0, far 1); `viewdirs` are the unit world-space directions the colour
 //! MLP sees. A chunk is rendered with one field call per pass, so the matrix products see
 //! `rays x samples` rows. Everything lives in a reusable [`Renderer`]: no allocation per chunk
@@ -26,37 +41,210 @@ pub struct RayChunk<'a, R = f32> {
     pub viewdirs: &'a [[R; 3]],
 }
 
-/// One pass's (coarse or fine) per-sample buffers.
+/// A [`Pass`] sample's row code with this bit set is a row of the fine [`Evals`] (else of the
+/// coarse ones).
+const FINE_ROW: u32 = 1 << 31;
+
+/// The samples one field call evaluates (ray-major, `per_ray` per ray): where they are, their
+/// density noise, which of them are alive and the field's outputs; and, in the backward, the
+/// gradients the passes route to them.
+#[derive(Clone, Debug, Default)]
+struct Evals<R> {
+    per_ray: usize,
+    t: Vec<R>,
+    pos: Vec<[R; 3]>,
+    dir: Vec<[R; 3]>,
+    noise: Vec<R>,
+    /// Raw density of every row.
+    sigma: Vec<R>,
+    /// Colour of every row (zero for a dead row).
+    rgb: Vec<[R; 3]>,
+    /// The alive rows, increasing; `kidx[row]` is a row's place in `keep` (`u32::MAX`: dead).
+    keep: Vec<u32>,
+    kidx: Vec<u32>,
+    kpos: Vec<[R; 3]>,
+    kdir: Vec<[R; 3]>,
+    krgb: Vec<[R; 3]>,
+    /// dL/d raw density, dL/d colour and dL/d features of every row, summed over the passes
+    /// that render it.
+    d_sigma: Vec<R>,
+    d_rgb: Vec<[R; 3]>,
+    d_feat: Vec<R>,
+    /// The same of the alive rows, and what the field's backward gives them.
+    kd_sigma: Vec<R>,
+    kd_rgb: Vec<[R; 3]>,
+    kd_feat: Vec<R>,
+    kd_pos: Vec<[R; 3]>,
+    kd_dir: Vec<[R; 3]>,
+    ws: FieldWorkspace<R>,
+}
+
+impl<R: Real> Evals<R> {
+    fn resize(&mut self, rays: usize, per_ray: usize) {
+        let n = rays * per_ray;
+        self.per_ray = per_ray;
+        self.t.resize(n, R::zero());
+        self.pos.resize(n, [R::zero(); 3]);
+        self.dir.resize(n, [R::zero(); 3]);
+        self.noise.resize(n, R::zero());
+        self.sigma.resize(n, R::zero());
+        self.rgb.resize(n, [R::zero(); 3]);
+        self.kidx.resize(n, 0);
+    }
+
+    fn rows(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Positions o + t d and view directions of every row, from `t`.
+    fn place(&mut self, chunk: &RayChunk<R>) {
+        for (i, t) in self.t.iter().enumerate() {
+            let r = i / self.per_ray;
+            let (o, d) = (chunk.origins[r], chunk.dirs[r]);
+            self.pos[i] = [o[0] + *t * d[0], o[1] + *t * d[1], o[2] + *t * d[2]];
+            self.dir[i] = chunk.viewdirs[r];
+        }
+    }
+
+    /// Runs `field` on the rows: the density of every row, then colour (and, later, the
+    /// backward) only for the alive ones: rows whose density after noise is positive, or every
+    /// row when `dense`.
+    fn eval(&mut self, field: &Field, params: &[R], dense: bool, train: bool) {
+        field.forward_density(params, &mut self.ws, &self.pos, &mut self.sigma);
+        self.keep.clear();
+        self.kdir.clear();
+        for i in 0..self.rows() {
+            let x = if train { self.sigma[i] + self.noise[i] } else { self.sigma[i] };
+            if dense || x > R::zero() {
+                self.kidx[i] = self.keep.len() as u32;
+                self.keep.push(i as u32);
+                self.kdir.push(self.dir[i]);
+            } else {
+                self.kidx[i] = u32::MAX;
+            }
+        }
+        self.krgb.resize(self.keep.len(), [R::zero(); 3]);
+        self.rgb.fill([R::zero(); 3]);
+        if self.keep.is_empty() {
+            return;
+        }
+        field.forward_colour(params, &mut self.ws, Some(&self.keep), &self.kdir, &mut self.krgb);
+        for (&k, c) in self.keep.iter().zip(&self.krgb) {
+            self.rgb[k as usize] = *c;
+        }
+    }
+
+    /// Clears the routed gradients before a backward (`width`: features per row, 0 if none).
+    fn zero_grads(&mut self, width: usize) {
+        let n = self.rows();
+        self.d_sigma.clear();
+        self.d_sigma.resize(n, R::zero());
+        self.d_rgb.clear();
+        self.d_rgb.resize(n, [R::zero(); 3]);
+        self.d_feat.clear();
+        self.d_feat.resize(n * width, R::zero());
+    }
+
+    /// The field's backward over the alive rows, from the routed gradients (with `with_feat`,
+    /// the features' too); with `rays_out`, adds each alive row's position and direction
+    /// gradient to its ray.
+    fn backward(
+        &mut self,
+        field: &Field,
+        params: &[R],
+        grads: &mut [R],
+        with_feat: bool,
+        rays_out: Option<&mut [RayGrad<R>]>,
+    ) {
+        if self.keep.is_empty() {
+            return;
+        }
+        let nf = field.shape.features;
+        self.kpos.clear();
+        self.kd_sigma.clear();
+        self.kd_rgb.clear();
+        self.kd_feat.clear();
+        for &k in &self.keep {
+            let k = k as usize;
+            self.kpos.push(self.pos[k]);
+            self.kd_sigma.push(self.d_sigma[k]);
+            self.kd_rgb.push(self.d_rgb[k]);
+            if with_feat {
+                self.kd_feat.extend_from_slice(&self.d_feat[k * nf..(k + 1) * nf]);
+            }
+        }
+        let d_features = with_feat.then_some(&self.kd_feat[..]);
+        let Some(out) = rays_out else {
+            field.backward(
+                params,
+                grads,
+                &mut self.ws,
+                &self.kpos,
+                &self.kd_sigma,
+                &self.kd_rgb,
+                d_features,
+                None,
+                None,
+            );
+            return;
+        };
+        let n = self.keep.len();
+        self.kd_pos.resize(n, [R::zero(); 3]);
+        self.kd_dir.resize(n, [R::zero(); 3]);
+        field.backward(
+            params,
+            grads,
+            &mut self.ws,
+            &self.kpos,
+            &self.kd_sigma,
+            &self.kd_rgb,
+            d_features,
+            Some(&mut self.kd_pos[..]),
+            Some(&mut self.kd_dir[..]),
+        );
+        // x = o + t d: dL/do = sum dL/dx, dL/dd = sum t dL/dx; the view direction's gradient is
+        // the sum over the samples.
+        for (j, &k) in self.keep.iter().enumerate() {
+            let k = k as usize;
+            let (dp, t, g) = (self.kd_pos[j], self.t[k], &mut out[k / self.per_ray]);
+            for a in 0..3 {
+                g.origin[a] += dp[a];
+                g.dir[a] += t * dp[a];
+                g.viewdir[a] += self.kd_dir[j][a];
+            }
+        }
+    }
+}
+
+/// One pass's (coarse or fine) rendered samples: each is a row of the coarse or the fine
+/// [`Evals`] (`src`), its depth, noise and field outputs gathered from there.
 #[derive(Clone, Debug, Default)]
 struct Pass<R> {
     /// Samples per ray.
     s: usize,
+    src: Vec<u32>,
     t: Vec<R>,
-    pos: Vec<[R; 3]>,
-    dir: Vec<[R; 3]>,
     sigma: Vec<R>,
     rgb: Vec<[R; 3]>,
     noise: Vec<R>,
     weights: Vec<R>,
+    /// Per-sample features of the density MLP (zero for a dead sample; filled for the last
+    /// pass only).
+    feats: Vec<R>,
     /// Rendered colour per ray.
     out: Vec<[R; 3]>,
     d_sigma: Vec<R>,
     d_rgb: Vec<[R; 3]>,
-    /// dL/d position and dL/d view direction per sample (only when ray gradients are asked for).
-    d_pos: Vec<[R; 3]>,
-    d_dir: Vec<[R; 3]>,
     /// dL/d|d| per ray from volume rendering (the sample spacing scales with |d|).
     d_norm: Vec<R>,
-    ws: FieldWorkspace<R>,
 }
 
 impl<R: Real> Pass<R> {
     fn resize(&mut self, rays: usize, s: usize) {
         let n = rays * s;
         self.s = s;
+        self.src.resize(n, 0);
         self.t.resize(n, R::zero());
-        self.pos.resize(n, [R::zero(); 3]);
-        self.dir.resize(n, [R::zero(); 3]);
         self.sigma.resize(n, R::zero());
         self.rgb.resize(n, [R::zero(); 3]);
         self.noise.resize(n, R::zero());
@@ -67,15 +255,23 @@ impl<R: Real> Pass<R> {
         self.d_norm.resize(rays, R::zero());
     }
 
-    /// Positions o + t d and view directions of every sample, from `t`.
-    fn place(&mut self, chunk: &RayChunk<R>, rays: usize) {
-        for r in 0..rays {
-            let (o, d) = (chunk.origins[r], chunk.dirs[r]);
-            for k in 0..self.s {
-                let i = r * self.s + k;
-                let t = self.t[i];
-                self.pos[i] = [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
-                self.dir[i] = chunk.viewdirs[r];
+    /// Gathers each sample's depth, noise and field outputs from its row; with `field`, also
+    /// its features (from the field's workspace, zero for a dead row).
+    fn gather(&mut self, coarse: &Evals<R>, fine: &Evals<R>, field: Option<&Field>) {
+        let width = field.map_or(0, |f| f.shape.features);
+        self.feats.clear();
+        self.feats.resize(self.src.len() * width, R::zero());
+        for (i, &code) in self.src.iter().enumerate() {
+            let (ev, row) =
+                if code & FINE_ROW != 0 { (fine, (code & !FINE_ROW) as usize) } else { (coarse, code as usize) };
+            self.t[i] = ev.t[row];
+            self.sigma[i] = ev.sigma[row];
+            self.rgb[i] = ev.rgb[row];
+            self.noise[i] = ev.noise[row];
+            if let (Some(f), k) = (field, ev.kidx[row]) {
+                if k != u32::MAX {
+                    self.feats[i * width..(i + 1) * width].copy_from_slice(f.features(&ev.ws, k as usize));
+                }
             }
         }
     }
@@ -104,8 +300,19 @@ impl<R: Real> Pass<R> {
         self.weights = weights;
     }
 
-    /// Backward through volume rendering: per-sample dL/dsigma_raw and dL/drgb from dL/dC.
-    fn render_backward(&mut self, chunk: &RayChunk<R>, rays: usize, d_out: &[[R; 3]], train: bool) {
+    /// Backward through volume rendering from dL/dC, then each sample's dL/dsigma_raw and
+    /// dL/drgb (and `d_features`, samples x width) added to its row.
+    #[allow(clippy::too_many_arguments)]
+    fn render_backward(
+        &mut self,
+        chunk: &RayChunk<R>,
+        rays: usize,
+        d_out: &[[R; 3]],
+        train: bool,
+        coarse: &mut Evals<R>,
+        fine: &mut Evals<R>,
+        d_features: Option<(&[R], usize)>,
+    ) {
         let (mut ds, mut dr) = (std::mem::take(&mut self.d_sigma), std::mem::take(&mut self.d_rgb));
         for r in 0..rays {
             let range = r * self.s..(r + 1) * self.s;
@@ -116,57 +323,31 @@ impl<R: Real> Pass<R> {
                 dr[range].as_flattened_mut(),
             );
         }
+        for (i, &code) in self.src.iter().enumerate() {
+            let (ev, row) = if code & FINE_ROW != 0 {
+                (&mut *fine, (code & !FINE_ROW) as usize)
+            } else {
+                (&mut *coarse, code as usize)
+            };
+            ev.d_sigma[row] += ds[i];
+            for c in 0..3 {
+                ev.d_rgb[row][c] += dr[i][c];
+            }
+            if let Some((df, w)) = d_features {
+                for (a, b) in ev.d_feat[row * w..(row + 1) * w].iter_mut().zip(&df[i * w..(i + 1) * w]) {
+                    *a += *b;
+                }
+            }
+        }
         self.d_sigma = ds;
         self.d_rgb = dr;
     }
 
-    /// The field's backward; with `with_rays`, also the per-sample position and direction
-    /// gradients.
-    fn field_backward(
-        &mut self,
-        field: &Field,
-        params: &[R],
-        grads: &mut [R],
-        with_rays: bool,
-        d_features: Option<&[R]>,
-    ) {
-        if with_rays {
-            let n = self.pos.len();
-            self.d_pos.resize(n, [R::zero(); 3]);
-            self.d_dir.resize(n, [R::zero(); 3]);
-            let (dp, dd) = (&mut self.d_pos[..], &mut self.d_dir[..]);
-            field.backward(
-                params,
-                grads,
-                &mut self.ws,
-                &self.pos,
-                &self.d_sigma,
-                &self.d_rgb,
-                d_features,
-                Some(dp),
-                Some(dd),
-            );
-        } else {
-            field.backward(params, grads, &mut self.ws, &self.pos, &self.d_sigma, &self.d_rgb, d_features, None, None);
-        }
-    }
-
-    /// Adds this pass's ray gradients: position x = o + t d gives dL/do = sum dL/dx and
-    /// dL/dd = sum t dL/dx, plus the |d| term of the spacing; the view direction's gradient is
-    /// the sum over the samples.
-    fn add_ray_grads(&self, chunk: &RayChunk<R>, rays: usize, out: &mut [RayGrad<R>]) {
+    /// Adds the |d| term of the sample spacing to each ray's direction gradient.
+    fn add_norm_grads(&self, chunk: &RayChunk<R>, rays: usize, out: &mut [RayGrad<R>]) {
         for (r, g) in out.iter_mut().enumerate().take(rays) {
             let d = chunk.dirs[r];
             let n = norm(d);
-            for k in 0..self.s {
-                let i = r * self.s + k;
-                let (dp, t) = (self.d_pos[i], self.t[i]);
-                for a in 0..3 {
-                    g.origin[a] += dp[a];
-                    g.dir[a] += t * dp[a];
-                    g.viewdir[a] += self.d_dir[i][a];
-                }
-            }
             for a in 0..3 {
                 g.dir[a] += self.d_norm[r] * d[a] / n;
             }
@@ -220,7 +401,24 @@ pub struct Renderer<R = f32> {
     fine_pass: bool,
     coarse: Pass<R>,
     fine: Pass<R>,
+    coarse_evals: Evals<R>,
+    fine_evals: Evals<R>,
     t_imp: Vec<R>,
+    counts: SampleCounts,
+}
+
+/// How many samples a [`Renderer`] has rendered and how many the field evaluated, since it was
+/// made (the sums of every forward).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SampleCounts {
+    /// Rays rendered.
+    pub rays: u64,
+    /// Samples volume-rendered (both passes).
+    pub rendered: u64,
+    /// Samples whose density was evaluated.
+    pub density: u64,
+    /// Samples that were alive: their colour evaluated, and later their backward.
+    pub alive: u64,
 }
 
 impl<R: Real> Renderer<R> {
@@ -240,6 +438,17 @@ impl<R: Real> Renderer<R> {
         self.forward_passes(model, params, chunk, rngs, false);
     }
 
+    /// The samples counted so far.
+    pub fn counts(&self) -> SampleCounts {
+        self.counts
+    }
+
+    /// Whether the fine pass re-uses the coarse pass's evaluations (one field for both
+    /// passes, samples skipped) and evaluates only the importance samples.
+    fn reuses(model: &Model) -> bool {
+        model.fine.is_none() && !model.config.dense
+    }
+
     fn forward_passes(
         &mut self,
         model: &Model,
@@ -254,70 +463,98 @@ impl<R: Real> Renderer<R> {
         self.rays = rays;
         self.train = rngs.is_some();
         self.fine_pass = fine && cfg.n_fine > 0;
+        let reuse = Self::reuses(model);
+        self.coarse_evals.resize(rays, nc);
         self.coarse.resize(rays, nc);
-        self.fine.resize(rays, nf);
         self.t_imp.resize(cfg.n_fine, R::zero());
         let noise_std = R::of(cfg.density_noise);
         // Coarse pass: stratified t in [0, 1] (NDC), density noise.
+        let ce = &mut self.coarse_evals;
         for r in 0..rays {
             let rng = rngs.as_deref_mut().map(|g| &mut g[r]);
-            let t = &mut self.coarse.t[r * nc..(r + 1) * nc];
+            let t = &mut ce.t[r * nc..(r + 1) * nc];
             match rng {
                 Some(rng) => {
                     sampling::stratified(R::zero(), R::one(), nc, Some(&mut *rng), t);
-                    for n in &mut self.coarse.noise[r * nc..(r + 1) * nc] {
+                    for n in &mut ce.noise[r * nc..(r + 1) * nc] {
                         *n = noise_std * R::of(rng.normal_f32() as f64);
                     }
                 }
                 None => sampling::stratified(R::zero(), R::one(), nc, None, t),
             }
         }
-        self.coarse.place(chunk, rays);
-        let c = &mut self.coarse;
-        model.coarse.forward(params, &mut c.ws, &c.pos, &c.dir, &mut c.sigma, &mut c.rgb);
-        c.render(chunk, rays, self.train);
+        ce.place(chunk);
+        ce.eval(&model.coarse, params, cfg.dense, self.train);
+        for (i, s) in self.coarse.src.iter_mut().enumerate() {
+            *s = i as u32;
+        }
+        let feats = (!self.fine_pass).then_some(&model.coarse);
+        self.coarse.gather(&self.coarse_evals, &self.fine_evals, feats);
+        self.coarse.render(chunk, rays, self.train);
+        self.counts.rays += rays as u64;
+        self.counts.rendered += (rays * nc) as u64;
+        self.counts.density += (rays * nc) as u64;
+        self.counts.alive += self.coarse_evals.keep.len() as u64;
         if !self.fine_pass {
             // One pass only: the "fine" colour is the coarse one.
             return;
         }
-        // Fine pass: importance samples from the coarse weights, merged with the coarse t.
+        // Fine pass: importance samples from the coarse weights, merged with the coarse t. With
+        // one field, the coarse samples' evaluations are re-used and only the importance
+        // samples are evaluated; with a fine field, it evaluates the union.
+        let per_eval = if reuse { cfg.n_fine } else { nf };
+        self.fine_evals.resize(rays, per_eval);
+        self.fine.resize(rays, nf);
         let mut det_rng = Rng::new(0, 0);
+        let (ce, fe, fp) = (&self.coarse_evals, &mut self.fine_evals, &mut self.fine);
         for r in 0..rays {
-            let (tc, wc) = (&self.coarse.t[r * nc..(r + 1) * nc], &self.coarse.weights[r * nc..(r + 1) * nc]);
-            let tf = &mut self.fine.t[r * nf..(r + 1) * nf];
-            match rngs.as_deref_mut().map(|g| &mut g[r]) {
-                Some(rng) => {
-                    sampling::importance(tc, wc, cfg.n_fine, false, rng, &mut self.t_imp);
-                    sampling::merge_sorted(tc, &self.t_imp, tf);
-                    for n in &mut self.fine.noise[r * nf..(r + 1) * nf] {
-                        *n = noise_std * R::of(rng.normal_f32() as f64);
-                    }
+            let (tc, wc) = (&ce.t[r * nc..(r + 1) * nc], &self.coarse.weights[r * nc..(r + 1) * nc]);
+            let rng = rngs.as_deref_mut().map(|g| &mut g[r]);
+            let (det, rng) = match rng {
+                Some(rng) => (false, rng),
+                None => (true, &mut det_rng),
+            };
+            sampling::importance(tc, wc, cfg.n_fine, det, rng, &mut self.t_imp);
+            let (src, tf) = (&mut fp.src[r * nf..(r + 1) * nf], &mut fp.t[r * nf..(r + 1) * nf]);
+            merge_rows(tc, (r * nc) as u32, &self.t_imp, (r * per_eval) as u32 | FINE_ROW, tf, src);
+            if reuse {
+                fe.t[r * per_eval..(r + 1) * per_eval].copy_from_slice(&self.t_imp);
+            } else {
+                fe.t[r * nf..(r + 1) * nf].copy_from_slice(tf);
+                for (k, s) in src.iter_mut().enumerate() {
+                    *s = (r * nf + k) as u32 | FINE_ROW;
                 }
-                None => {
-                    sampling::importance(tc, wc, cfg.n_fine, true, &mut det_rng, &mut self.t_imp);
-                    sampling::merge_sorted(tc, &self.t_imp, tf);
+            }
+            if !det {
+                for n in &mut fe.noise[r * per_eval..(r + 1) * per_eval] {
+                    *n = noise_std * R::of(rng.normal_f32() as f64);
                 }
             }
         }
-        self.fine.place(chunk, rays);
-        let f = &mut self.fine;
-        model.fine_field().forward(params, &mut f.ws, &f.pos, &f.dir, &mut f.sigma, &mut f.rgb);
-        f.render(chunk, rays, self.train);
+        fe.place(chunk);
+        fe.eval(model.fine_field(), params, cfg.dense, self.train);
+        self.fine.gather(&self.coarse_evals, &self.fine_evals, Some(model.fine_field()));
+        self.fine.render(chunk, rays, self.train);
+        self.counts.rendered += (rays * nf) as u64;
+        self.counts.density += (rays * per_eval) as u64;
+        self.counts.alive += self.fine_evals.keep.len() as u64;
     }
 
     /// Re-runs the last forward with other `params` or rays but the same sample depths and
     /// noise (sampling is not differentiated; the finite-difference checks hold it fixed).
     pub fn replay(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>) {
         let rays = self.rays;
-        let c = &mut self.coarse;
-        c.place(chunk, rays);
-        model.coarse.forward(params, &mut c.ws, &c.pos, &c.dir, &mut c.sigma, &mut c.rgb);
-        c.render(chunk, rays, self.train);
+        let dense = model.config.dense;
+        self.coarse_evals.place(chunk);
+        self.coarse_evals.eval(&model.coarse, params, dense, self.train);
+        let feats = (!self.fine_pass).then_some(&model.coarse);
+        self.coarse.gather(&self.coarse_evals, &self.fine_evals, feats);
+        self.coarse.render(chunk, rays, self.train);
         if self.fine_pass {
-            let f = &mut self.fine;
-            f.place(chunk, rays);
-            model.fine_field().forward(params, &mut f.ws, &f.pos, &f.dir, &mut f.sigma, &mut f.rgb);
-            f.render(chunk, rays, self.train);
+            self.fine_evals.place(chunk);
+            self.fine_evals.eval(model.fine_field(), params, dense, self.train);
+            self.fine.gather(&self.coarse_evals, &self.fine_evals, Some(model.fine_field()));
+            self.fine.render(chunk, rays, self.train);
         }
     }
 
@@ -337,16 +574,17 @@ impl<R: Real> Renderer<R> {
     }
 
     /// The samples of the last pass (the fine one, or the only one) of the last forward, for
-    /// losses on per-sample features (AWP).
+    /// losses on per-sample features (AWP). A skipped sample (zero density) has zero features
+    /// and zero weight.
     pub fn last_pass<'a>(&'a self, model: &'a Model) -> PassSamples<'a, R> {
         let (pass, field) =
             if self.fine_pass { (&self.fine, model.fine_field()) } else { (&self.coarse, &model.coarse) };
-        let (rows, stride) = field.feature_rows(&pass.ws);
+        let width = field.shape.features;
         PassSamples {
             per_ray: pass.s,
-            features: rows,
-            stride,
-            width: field.shape.features,
+            features: &pass.feats[..self.rays * pass.s * width],
+            stride: width,
+            width,
             weights: &pass.weights[..self.rays * pass.s],
         }
     }
@@ -370,33 +608,68 @@ impl<R: Real> Renderer<R> {
         d_features: Option<&[R]>,
     ) {
         let rays = self.rays;
-        let with_rays = d_rays.is_some();
         if let Some(out) = d_rays.as_deref_mut() {
             out[..rays].fill(RayGrad::zero());
         }
+        let (train, with_feat) = (self.train, d_features.is_some());
+        let (ce, fe) = (&mut self.coarse_evals, &mut self.fine_evals);
         if !self.fine_pass {
             // One pass: both losses act on the coarse colour.
+            let width = model.coarse.shape.features;
+            ce.zero_grads(if with_feat { width } else { 0 });
             let d: Vec<[R; 3]> =
                 d_coarse.iter().zip(d_fine).map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]).collect();
-            let c = &mut self.coarse;
-            c.render_backward(chunk, rays, &d, self.train);
-            c.field_backward(&model.coarse, params, grads, with_rays, d_features);
+            self.coarse.render_backward(chunk, rays, &d, train, ce, fe, d_features.map(|d| (d, width)));
+            ce.backward(&model.coarse, params, grads, with_feat, d_rays.as_deref_mut());
             if let Some(out) = d_rays {
-                c.add_ray_grads(chunk, rays, out);
+                self.coarse.add_norm_grads(chunk, rays, out);
             }
             return;
         }
-        let f = &mut self.fine;
-        f.render_backward(chunk, rays, d_fine, self.train);
-        f.field_backward(model.fine_field(), params, grads, with_rays, d_features);
-        if let Some(out) = d_rays.as_deref_mut() {
-            f.add_ray_grads(chunk, rays, out);
+        let fine_field = model.fine_field();
+        let width = fine_field.shape.features;
+        let reuse = Self::reuses(model);
+        // The last pass's features live in the coarse rows too when they are re-used.
+        ce.zero_grads(if with_feat && reuse { width } else { 0 });
+        fe.zero_grads(if with_feat { width } else { 0 });
+        self.fine.render_backward(chunk, rays, d_fine, train, ce, fe, d_features.map(|d| (d, width)));
+        if reuse {
+            // The coarse rows collect both passes' gradients before their one backward.
+            self.coarse.render_backward(chunk, rays, d_coarse, train, ce, fe, None);
+            fe.backward(fine_field, params, grads, with_feat, d_rays.as_deref_mut());
+            ce.backward(&model.coarse, params, grads, with_feat, d_rays.as_deref_mut());
+            if let Some(out) = d_rays {
+                self.fine.add_norm_grads(chunk, rays, out);
+                self.coarse.add_norm_grads(chunk, rays, out);
+            }
+            return;
         }
-        let c = &mut self.coarse;
-        c.render_backward(chunk, rays, d_coarse, self.train);
-        c.field_backward(&model.coarse, params, grads, with_rays, None);
+        fe.backward(fine_field, params, grads, with_feat, d_rays.as_deref_mut());
+        if let Some(out) = d_rays.as_deref_mut() {
+            self.fine.add_norm_grads(chunk, rays, out);
+        }
+        self.coarse.render_backward(chunk, rays, d_coarse, train, ce, fe, None);
+        ce.backward(&model.coarse, params, grads, false, d_rays.as_deref_mut());
         if let Some(out) = d_rays {
-            c.add_ray_grads(chunk, rays, out);
+            self.coarse.add_norm_grads(chunk, rays, out);
+        }
+    }
+}
+
+/// The sorted union of one ray's coarse depths `a` (rows `a0..`) and importance depths `b`
+/// (rows `b0..`): depths into `t`, each one's row code into `src` (ties: the coarse first, as
+/// [`sampling::merge_sorted`]).
+fn merge_rows<R: Real>(a: &[R], a0: u32, b: &[R], b0: u32, t: &mut [R], src: &mut [u32]) {
+    let (mut i, mut j) = (0, 0);
+    for (o, s) in t.iter_mut().zip(src.iter_mut()) {
+        if j == b.len() || (i < a.len() && a[i] <= b[j]) {
+            *o = a[i];
+            *s = a0 + i as u32;
+            i += 1;
+        } else {
+            *o = b[j];
+            *s = b0 + j as u32;
+            j += 1;
         }
     }
 }

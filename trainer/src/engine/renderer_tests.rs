@@ -9,6 +9,12 @@ use super::renderer::{RayChunk, RayGrad, Renderer};
 use super::rng::Rng;
 
 fn tiny_config(two_levels: bool) -> ModelConfig {
+    tiny_config_with(two_levels, if two_levels { 5 } else { 0 })
+}
+
+/// The tiny model with `n_fine` importance samples (one level and `n_fine > 0`: one field for
+/// both passes, the fine pass re-using the coarse evaluations).
+fn tiny_config_with(two_levels: bool, n_fine: usize) -> ModelConfig {
     let shape = |w: usize, f: usize| FieldShape {
         pe_pos: 2,
         pe_dir: 1,
@@ -23,11 +29,12 @@ fn tiny_config(two_levels: bool) -> ModelConfig {
         coarse: shape(6, 2),
         fine: two_levels.then(|| shape(5, 3)),
         n_coarse: 7,
-        n_fine: if two_levels { 5 } else { 0 },
+        n_fine,
         density_noise: 0.3,
         tv_plane: 0.0,
         tv_line: 0.0,
         explicit: true,
+        dense: false,
         bounds: Some(super::model::Aabb { min: [-0.8, -0.7, -1.0], max: [0.9, 0.8, 1.0] }),
     }
 }
@@ -36,8 +43,8 @@ fn feature_weight(i: usize, c: usize) -> f64 {
     0.05 * ((i * 7 + c * 3) as f64 * 0.9).sin()
 }
 
-fn check(two_levels: bool) {
-    let model = Model::new(&tiny_config(two_levels));
+fn check(cfg: ModelConfig) {
+    let model = Model::new(&cfg);
     // Larger grid values than the default init, so densities and colours vary along the rays.
     let mut params: Vec<f64> = model.init(3).iter().map(|&p| p as f64).collect();
     for v in &model.volumes {
@@ -54,6 +61,13 @@ fn check(two_levels: bool) {
     let mut rngs: Vec<Rng> = (0..3).map(|r| Rng::new(11, r)).collect();
     let mut renderer = Renderer::<f64>::default();
     renderer.forward(&model, &params, &chunk, Some(&mut rngs));
+    // The check must see skipped samples (or, dense, none).
+    let counts = renderer.counts();
+    if model.config.dense {
+        assert_eq!((counts.alive, counts.density), (counts.rendered, counts.rendered), "{counts:?}");
+    } else {
+        assert!(counts.alive < counts.density && counts.alive > counts.density / 4, "{counts:?}");
+    }
     let wc = [[0.3, -0.2, 0.5], [0.1, 0.4, -0.3], [-0.6, 0.2, 0.1]];
     let wf = [[-0.2, 0.5, 0.3], [0.4, -0.1, 0.2], [0.3, 0.3, -0.5]];
     let loss = |r: &Renderer<f64>| -> f64 {
@@ -124,12 +138,23 @@ fn check(two_levels: bool) {
 
 #[test]
 fn renderer_gradients_match_finite_differences_with_two_levels() {
-    check(true);
+    check(tiny_config(true));
+}
+
+#[test]
+fn renderer_gradients_match_finite_differences_with_one_field_for_both_passes() {
+    check(tiny_config_with(false, 6));
+}
+
+#[test]
+fn renderer_gradients_match_finite_differences_on_the_dense_path() {
+    check(ModelConfig { dense: true, ..tiny_config_with(false, 6) });
+    check(ModelConfig { dense: true, ..tiny_config(true) });
 }
 
 #[test]
 fn renderer_gradients_match_finite_differences_with_one_pass() {
-    check(false);
+    check(tiny_config(false));
 }
 
 #[test]
@@ -149,4 +174,74 @@ fn evaluation_forward_is_deterministic_and_matches_replay() {
     b.forward(&model, &params, &chunk, None);
     assert_eq!(first, (b.coarse()[0], b.fine()[0]));
     assert!(first.1.iter().all(|c| c.is_finite() && *c >= 0.0));
+}
+
+/// Skipping samples whose density is zero and re-using the coarse evaluations changes nothing
+/// but rounding: without density noise (the one draw the two paths make differently), the
+/// colours, the last pass's weights and features, and every gradient agree with the dense path.
+#[test]
+fn skipping_samples_matches_the_dense_path() {
+    for cfg in [tiny_config(true), tiny_config(false), tiny_config_with(false, 6)] {
+        let cfg = ModelConfig { density_noise: 0.0, ..cfg };
+        let dense_cfg = ModelConfig { dense: true, ..cfg.clone() };
+        let (model, dense_model) = (Model::new(&cfg), Model::new(&dense_cfg));
+        let mut params: Vec<f64> = model.init(7).iter().map(|&p| p as f64).collect();
+        for p in &mut params[model.volumes[0].planes[0]..model.volumes[0].basis.w] {
+            *p *= 30.0;
+        }
+        let rays = 5;
+        let origins: Vec<[f64; 3]> = (0..rays).map(|r| [0.15 * r as f64 - 0.3, 0.1 - 0.05 * r as f64, -1.0]).collect();
+        let dirs: Vec<[f64; 3]> = (0..rays).map(|r| [0.02 * r as f64 - 0.04, 0.03, 2.0]).collect();
+        let viewdirs = vec![[0.1, -0.1, -0.99]; rays];
+        let chunk = RayChunk { origins: &origins, dirs: &dirs, viewdirs: &viewdirs };
+        let d_c: Vec<[f64; 3]> = (0..rays).map(|r| [0.3, -0.2 * r as f64, 0.1]).collect();
+        let d_f: Vec<[f64; 3]> = (0..rays).map(|r| [-0.1 * r as f64, 0.4, 0.2]).collect();
+        let run = |model: &Model| {
+            let mut rngs: Vec<Rng> = (0..rays).map(|r| Rng::new(5, r as u64)).collect();
+            let mut renderer = Renderer::<f64>::default();
+            renderer.forward(model, &params, &chunk, Some(&mut rngs));
+            let ps = renderer.last_pass(model);
+            // As the AWP's: a feature's gradient carries its sample's render weight.
+            let d_feat: Vec<f64> = (0..ps.features.len())
+                .map(|i| ps.weights[i / ps.width] * feature_weight(i / ps.width, i % ps.width))
+                .collect();
+            let (feats, weights) = (ps.features.to_vec(), ps.weights.to_vec());
+            let mut grads = model.layout.zeros::<f64>();
+            let mut d_rays = vec![RayGrad::zero(); rays];
+            renderer.backward(model, &params, &mut grads, &chunk, &d_c, &d_f, Some(&mut d_rays), Some(&d_feat));
+            let cols = [renderer.coarse().to_vec(), renderer.fine().to_vec()];
+            (cols, feats, weights, grads, d_rays, renderer.counts())
+        };
+        let (a, b) = (run(&model), run(&dense_model));
+        let close = |x: f64, y: f64| (x - y).abs() <= 1e-10 * (1.0 + x.abs().max(y.abs()));
+        for (ca, cb) in a.0.iter().zip(&b.0) {
+            assert!(ca.iter().flatten().zip(cb.iter().flatten()).all(|(x, y)| close(*x, *y)), "{ca:?} vs {cb:?}");
+        }
+        assert!(a.2.iter().zip(&b.2).all(|(x, y)| close(*x, *y)), "weights differ");
+        // Features agree wherever they count: a skipped sample has zero weight (and zeros).
+        let width = a.1.len() / a.2.len();
+        for (i, w) in a.2.iter().enumerate() {
+            let (fa, fb) = (&a.1[i * width..], &b.1[i * width..]);
+            for c in 0..width {
+                assert!(if *w == 0.0 { fa[c] == 0.0 } else { close(fa[c], fb[c]) }, "sample {i} feature {c}");
+            }
+        }
+        for (i, (x, y)) in a.3.iter().zip(&b.3).enumerate() {
+            assert!(close(*x, *y), "parameter {i}: {x} skipping, {y} dense");
+        }
+        for (ra, rb) in a.4.iter().zip(&b.4) {
+            for (x, y) in
+                [ra.origin, ra.dir, ra.viewdir].iter().flatten().zip([rb.origin, rb.dir, rb.viewdir].iter().flatten())
+            {
+                assert!(close(*x, *y), "ray gradient {x} vs {y}");
+            }
+        }
+        // And it did skip: fewer samples reached the colour MLP (and, with one field, fewer
+        // densities were evaluated) than the dense path's.
+        let (ca, cb) = (a.5, b.5);
+        assert_eq!((ca.rays, ca.rendered), (cb.rays, cb.rendered));
+        assert!(ca.alive < cb.alive, "{ca:?} vs dense {cb:?}");
+        let one_field = cfg.fine.is_none() && cfg.n_fine > 0;
+        assert_eq!(ca.density < cb.density, one_field, "{ca:?} vs dense {cb:?}");
+    }
 }

@@ -85,11 +85,21 @@ enum Cmd {
     /// Diagnose a trained run (`diagnose events RUN`).
     #[command(subcommand)]
     Diagnose(Diagnose),
-    /// Time optimisation steps: the reference step and the cpu-scale step.
+    /// Time optimisation steps: the reference step and the cpu-scale step on synthetic rays;
+    /// with --run, every preset family on a trained field, dense engine against skipping.
     Bench {
         /// Timed steps per shape (after one warm-up).
         #[arg(long, default_value_t = 7)]
         reps: usize,
+        /// A trained run (cpu scale) whose dataset and field the preset families are timed on.
+        #[arg(long)]
+        run: Option<PathBuf>,
+        /// With --run: only these presets (repeatable; default: one per family).
+        #[arg(long = "preset")]
+        presets: Vec<String>,
+        /// Worker threads (0: all cores).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
     },
 }
 
@@ -141,7 +151,8 @@ fn main() -> Result<()> {
             Ok(())
         }
         Cmd::Diagnose(Diagnose::Events { run, pairs, seed, threads }) => diagnose_events(&run, pairs, seed, threads),
-        Cmd::Bench { reps } => bench(reps),
+        Cmd::Bench { reps, run: None, .. } => bench(reps),
+        Cmd::Bench { reps, run: Some(run), presets, threads } => bench_families(&run, &presets, reps, threads),
     }
 }
 
@@ -422,6 +433,67 @@ fn bench(reps: usize) -> Result<()> {
         paper.layout.len() as f64 / 1e6,
         peak_rss_bytes().unwrap_or(0) as f64 / 1e9
     );
+    Ok(())
+}
+
+/// `evtrain bench --run`: each preset family's step on the run's trained field, dense against
+/// skipping, side by side.
+fn bench_families(dir: &Path, only: &[String], reps: usize, threads: usize) -> Result<()> {
+    if reps == 0 {
+        bail!("--reps 0: time at least one step");
+    }
+    let run = RunPaths::new(dir);
+    let text = std::fs::read_to_string(run.config())
+        .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
+    let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
+    let opts = LoadOptions { read_events: true, read_sharp: true, ..LoadOptions::default() };
+    let dataset = Dataset::load(&record.data, &opts)?;
+    let method = Method::new(&record.config, dataset.views.len());
+    let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
+    let families: Vec<(String, String)> = if only.is_empty() {
+        trainer::bench::FAMILIES.iter().map(|(f, p)| (f.to_string(), p.to_string())).collect()
+    } else {
+        only.iter().map(|p| (p.clone(), p.clone())).collect()
+    };
+    println!(
+        "{} (step {}) on {}: {} timed steps per path after one warm-up, dense and skipping alternating",
+        record.preset,
+        ck.step,
+        record.data.display(),
+        reps
+    );
+    println!(
+        "{:<20} {:<16} {:>9} {:>9} {:>7}   samples per ray: rendered / density / alive (skipping)",
+        "family", "preset", "dense ms", "skip ms", "ratio"
+    );
+    for (family, preset) in families {
+        let t = trainer::bench::time_family(
+            &family,
+            &preset,
+            &dataset,
+            method.layout(),
+            &ck.params,
+            record.config.model.bounds,
+            reps,
+            threads,
+        )?;
+        println!(
+            "{:<20} {:<16} {:>9.1} {:>9.1} {:>6.2}x   {:.0} / {:.1} / {:.1}{}",
+            t.family,
+            t.preset,
+            t.dense.median_ms,
+            t.skipping.median_ms,
+            t.dense.median_ms / t.skipping.median_ms,
+            t.skipping.rendered_per_ray,
+            t.skipping.density_per_ray,
+            t.skipping.alive_per_ray,
+            if t.from_run < t.tensors {
+                format!("  ({} of {} tensors from the run)", t.from_run, t.tensors)
+            } else {
+                String::new()
+            }
+        );
+    }
     Ok(())
 }
 

@@ -70,8 +70,12 @@ fn synthetic_batch(n: usize, seed: u64) -> (Vec<PreparedRay>, Vec<[f32; 3]>) {
     (rays, targets)
 }
 
-/// Times `reps` steps of `cfg` (after one warm-up step) on the current rayon pool.
+/// Times `reps` steps of `cfg` (after one warm-up step) on the current rayon pool, on the
+/// dense engine (every sample through the whole field, so the flop count is exact).
 pub fn time_steps(name: &str, cfg: &TrainConfig, reps: usize, threads: usize) -> StepTiming {
+    let mut cfg = cfg.clone();
+    cfg.model.dense = true;
+    let cfg = &cfg;
     let model = Model::new(&cfg.model);
     let mut params = model.init(cfg.seed);
     let mut adam = Adam::new(&model.layout);

@@ -416,7 +416,7 @@ fn bench(reps: usize) -> Result<()> {
             presets::nerf(Scale::Paper),
         ),
     ];
-    println!("{threads} threads, {reps} timed steps each after one warm-up");
+    println!("{threads} threads, {reps} timed steps each after one warm-up, dense engine (every sample evaluated)");
     for (name, cfg) in shapes {
         let t = trainer::bench::time_steps(name, &cfg, reps, threads);
         println!(

@@ -349,17 +349,23 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
     Ok(())
 }
 
-fn diagnose_events(dir: &Path, pairs: usize, seed: u64, threads: usize) -> Result<()> {
-    use trainer::diagnose;
-    if pairs == 0 {
-        bail!("--pairs 0: draw at least one pair");
-    }
+/// A run folder's paths and record, and its dataset with events and sharp views.
+fn open_run(dir: &Path) -> Result<(RunPaths, RunRecord, Dataset)> {
     let run = RunPaths::new(dir);
     let text = std::fs::read_to_string(run.config())
         .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
     let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
     let opts = LoadOptions { read_events: true, read_sharp: true, ..LoadOptions::default() };
     let dataset = Dataset::load(&record.data, &opts)?;
+    Ok((run, record, dataset))
+}
+
+fn diagnose_events(dir: &Path, pairs: usize, seed: u64, threads: usize) -> Result<()> {
+    use trainer::diagnose;
+    if pairs == 0 {
+        bail!("--pairs 0: draw at least one pair");
+    }
+    let (run, record, dataset) = open_run(dir)?;
     if dataset.events.is_empty() {
         bail!("{}: the dataset has no events to diagnose (events.h5 is empty)", record.data.display());
     }
@@ -442,12 +448,7 @@ fn bench_families(dir: &Path, only: &[String], reps: usize, threads: usize) -> R
     if reps == 0 {
         bail!("--reps 0: time at least one step");
     }
-    let run = RunPaths::new(dir);
-    let text = std::fs::read_to_string(run.config())
-        .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
-    let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
-    let opts = LoadOptions { read_events: true, read_sharp: true, ..LoadOptions::default() };
-    let dataset = Dataset::load(&record.data, &opts)?;
+    let (run, record, dataset) = open_run(dir)?;
     let method = Method::new(&record.config, dataset.views.len());
     let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
     let families: Vec<(String, String)> = if only.is_empty() {

@@ -237,7 +237,8 @@ impl Field {
     }
 
     /// The features the density MLP gave sample `i` in the last forward on `ws` (what the
-    /// colour MLP reads; DP-NeRF's AWP integrates them along the ray).
+    /// colour MLP reads; DP-NeRF's AWP integrates them along the ray); after a
+    /// [`forward_colour`](Self::forward_colour) with `keep`, `i` counts the kept rows.
     pub fn features<'a, R: Real>(&self, ws: &'a FieldWorkspace<R>, i: usize) -> &'a [R] {
         let (dc, nf) = (self.d_colour_in(), self.shape.features);
         &ws.x_colour[i * dc..i * dc + nf]

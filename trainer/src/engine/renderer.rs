@@ -660,16 +660,11 @@ impl<R: Real> Renderer<R> {
 /// (rows `b0..`): depths into `t`, each one's row code into `src` (ties: the coarse first, as
 /// [`sampling::merge_sorted`]).
 fn merge_rows<R: Real>(a: &[R], a0: u32, b: &[R], b0: u32, t: &mut [R], src: &mut [u32]) {
-    let (mut i, mut j) = (0, 0);
-    for (o, s) in t.iter_mut().zip(src.iter_mut()) {
-        if j == b.len() || (i < a.len() && a[i] <= b[j]) {
-            *o = a[i];
-            *s = a0 + i as u32;
-            i += 1;
-        } else {
-            *o = b[j];
-            *s = b0 + j as u32;
-            j += 1;
-        }
-    }
+    sampling::merge_walk(a, b, |k, x, origin| {
+        t[k] = x;
+        src[k] = match origin {
+            Ok(i) => a0 + i as u32,
+            Err(j) => b0 + j as u32,
+        };
+    });
 }

@@ -114,15 +114,22 @@ pub fn importance<R: Real>(bins_t: &[R], weights: &[R], n_fine: usize, det: bool
 /// coarse and importance samples the fine pass evaluates.
 pub fn merge_sorted<R: Real>(coarse: &[R], fine: &[R], out: &mut [R]) {
     assert_eq!(out.len(), coarse.len() + fine.len(), "merge_sorted: out has the wrong length");
+    merge_walk(coarse, fine, |k, t, _| out[k] = t);
+}
+
+/// Walks the sorted union of two sorted slices in order (ties: `coarse` first), calling
+/// `emit(k, value, origin)` for the k-th value, `origin` `Ok(i)` for `coarse[i]` and `Err(j)`
+/// for `fine[j]`.
+pub fn merge_walk<R: Real>(coarse: &[R], fine: &[R], mut emit: impl FnMut(usize, R, Result<usize, usize>)) {
     debug_assert!(coarse.windows(2).all(|w| w[0] <= w[1]), "merge_sorted: coarse is not sorted");
     debug_assert!(fine.windows(2).all(|w| w[0] <= w[1]), "merge_sorted: fine is not sorted");
     let (mut a, mut b) = (0, 0);
-    for o in out.iter_mut() {
+    for k in 0..coarse.len() + fine.len() {
         if b == fine.len() || (a < coarse.len() && coarse[a] <= fine[b]) {
-            *o = coarse[a];
+            emit(k, coarse[a], Ok(a));
             a += 1;
         } else {
-            *o = fine[b];
+            emit(k, fine[b], Err(b));
             b += 1;
         }
     }

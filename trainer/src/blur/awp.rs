@@ -395,6 +395,7 @@ impl Awp {
             &mut ws.g_a,
             &mut ws.g_b,
             &mut ws.g_x,
+            d_in,
         );
         ws.d_embedding.clear();
         ws.d_embedding.resize(self.embedding, R::zero());
@@ -432,6 +433,7 @@ impl Awp {
             &mut ws.g_a,
             &mut g_b,
             &mut d_features,
+            self.sample[0].n_in,
         );
         ws.g_b = g_b;
         ws.d_features = d_features;

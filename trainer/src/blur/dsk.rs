@@ -469,7 +469,18 @@ impl Dsk {
         ws.g_head.resize(rows * head_in, R::zero());
         let wide_in: (&[R], usize) =
             if self.config.shortcut { (&ws.wide, head_in) } else { (ws.trunk.last().expect("validated"), head_in) };
-        backward_stack(&self.head, params, grads, rows, wide_in, &ws.head, &mut ws.g_a, &mut ws.g_b, &mut ws.g_head);
+        backward_stack(
+            &self.head,
+            params,
+            grads,
+            rows,
+            wide_in,
+            &ws.head,
+            &mut ws.g_a,
+            &mut ws.g_b,
+            &mut ws.g_head,
+            head_in,
+        );
         let wt = self.trunk.last().expect("validated").n_out;
         let skip = if self.config.shortcut { d_in } else { 0 };
         ws.g_a.clear();
@@ -488,6 +499,7 @@ impl Dsk {
             &mut ws.g_a,
             &mut ws.g_b,
             &mut ws.g_x,
+            d_in,
         );
         if self.config.shortcut {
             for r in 0..rows {

@@ -65,6 +65,20 @@ pub struct FieldWorkspace<R> {
     g_b: Vec<R>,
     g_x: Vec<R>,
     g_comps: Vec<R>,
+    /// Whether the backward differentiates every input column (see
+    /// [`set_all_input_grads`](Self::set_all_input_grads)).
+    all_input_grads: bool,
+}
+
+impl<R> FieldWorkspace<R> {
+    /// With `all`, [`Field::backward`] computes dL/d(input) for the positional encodings' columns
+    /// and the volumes' position gradients even when no position or direction gradient is asked
+    /// for (work the result never reads):
+    /// the engine as it was before it skipped samples, kept for `model.dense`'s side-by-side
+    /// timings.
+    pub fn set_all_input_grads(&mut self, all: bool) {
+        self.all_input_grads = all;
+    }
 }
 
 impl Field {
@@ -266,7 +280,12 @@ impl Field {
         let nf = self.shape.features;
         let dc = self.d_colour_in();
         let dd = self.d_density_in();
-        // Colour MLP, down to its input (features | PE(d)).
+        // Colour MLP, down to its input (features | PE(d)); the PE(d) columns only when d_dir is
+        // wanted, as the PE(x) columns of the density input only when d_pos is.
+        let all = ws.all_input_grads;
+        let colour_cols = if all || d_dir.is_some() { dc } else { nf };
+        let vol_cols: usize = self.volumes.iter().map(|v| v.n_features()).sum();
+        let density_cols = if all || d_pos.is_some() { dd } else { vol_cols };
         for i in 0..p {
             ws.g_a[3 * i..3 * i + 3].copy_from_slice(&d_rgb[i]);
         }
@@ -280,8 +299,9 @@ impl Field {
             &mut ws.g_a,
             &mut ws.g_b,
             &mut ws.g_x,
+            colour_cols,
         );
-        // ws.g_x now holds dL/d x_colour (p x dc).
+        // ws.g_x now holds dL/d x_colour (p x dc) in its first colour_cols columns.
         if let Some(d_dir) = d_dir {
             let dw = encoding::width(self.shape.pe_dir);
             for i in 0..p {
@@ -310,17 +330,20 @@ impl Field {
             &mut ws.g_a,
             &mut ws.g_b,
             &mut ws.g_x,
+            density_cols,
         );
-        // ws.g_x holds dL/d x_density (p x dd): per volume through its basis, then the grid.
+        // ws.g_x holds dL/d x_density (p x dd) in its first density_cols columns: per volume
+        // through its basis, then the grid.
         let mut d_pos = d_pos;
         if let Some(d) = d_pos.as_deref_mut() {
             let pw = encoding::width(self.shape.pe_pos);
-            let col: usize = self.volumes.iter().map(|v| v.n_features()).sum();
+            let col = vol_cols;
             for i in 0..p {
                 let enc = &ws.x_density[i * dd + col..i * dd + col + pw];
                 d[i] = encoding::backward(enc, &ws.g_x[i * dd + col..i * dd + col + pw], self.shape.pe_pos);
             }
         }
+        let want_dpos = all || d_pos.is_some();
         let mut col = 0;
         for (v, comps) in self.volumes.iter().zip(&ws.comps) {
             let nc = v.n_comps();
@@ -339,7 +362,7 @@ impl Field {
             );
             ws.g_x = g_feat;
             for (i, x) in pos.iter().enumerate() {
-                let dp = v.components_backward(params, grads, *x, &ws.g_comps[i * nc..(i + 1) * nc]);
+                let dp = v.components_backward(params, grads, *x, &ws.g_comps[i * nc..(i + 1) * nc], want_dpos);
                 if let Some(d) = d_pos.as_deref_mut() {
                     for a in 0..3 {
                         d[i][a] += dp[a];

@@ -180,6 +180,42 @@ fn field_gradients_match_finite_differences_with_bias_and_two_volumes() {
     check_field(true, true, false);
 }
 
+/// Without position and direction gradients the backward skips the positional encodings'
+/// input columns and the volumes' position terms: the parameter gradients must not change,
+/// whether or not the workspace asks for every input column (the dense engine's setting).
+#[test]
+fn parameter_gradients_do_not_depend_on_asking_for_input_gradients() {
+    for (bias, two_volumes, features) in [(false, false, false), (true, true, true)] {
+        let (field, layout, params) = tiny_field(bias, two_volumes);
+        let p = 7;
+        let (pos, dir) = inputs(p);
+        let (d_sigma, d_rgb) = weights(p);
+        let d_feat = features.then(|| feature_weights(p * field.shape.features));
+        let run = |all: bool, inputs_too: bool| {
+            let mut ws = FieldWorkspace::default();
+            ws.set_all_input_grads(all);
+            let (mut sigma, mut rgb) = (vec![0.0; p], vec![[0.0; 3]; p]);
+            field.forward(&params, &mut ws, &pos, &dir, &mut sigma, &mut rgb);
+            let mut grads = layout.zeros::<f64>();
+            let (mut d_pos, mut d_dir) = (vec![[0.0; 3]; p], vec![[0.0; 3]; p]);
+            let (dp, dd) = if inputs_too { (Some(&mut d_pos[..]), Some(&mut d_dir[..])) } else { (None, None) };
+            field.backward(&params, &mut grads, &mut ws, &pos, &d_sigma, &d_rgb, d_feat.as_deref(), dp, dd);
+            grads
+        };
+        let full = run(false, true);
+        assert!(full.iter().filter(|g| g.abs() > 1e-8).count() > full.len() / 4, "gradients are mostly zero");
+        for (all, inputs_too) in [(false, false), (true, false), (true, true)] {
+            let g = run(all, inputs_too);
+            for (i, (a, b)) in g.iter().zip(&full).enumerate() {
+                assert!(
+                    (a - b).abs() <= 1e-12 * (1.0 + b.abs()),
+                    "param {i}: {a} (all {all}, inputs {inputs_too}) vs {b} with input gradients"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn tv_gradient_matches_finite_differences() {
     let (field, layout, params) = tiny_field(false, false);

@@ -113,6 +113,27 @@ impl Dense {
         ldy: usize,
         dx: Option<(&mut [R], usize, R)>,
     ) {
+        self.backward_cols(params, grads, p, x, ldx, y, dy, ldy, dx, self.n_in);
+    }
+
+    /// [`backward`](Self::backward) computing dL/dx only for the first `dx_cols` input columns
+    /// (the others of `dx` are left untouched): an input block nobody differentiates, such as
+    /// a positional encoding, costs no multiply-adds.
+    #[allow(clippy::too_many_arguments)]
+    pub fn backward_cols<R: Real>(
+        &self,
+        params: &[R],
+        grads: &mut [R],
+        p: usize,
+        x: &[R],
+        ldx: usize,
+        y: &[R],
+        dy: &mut [R],
+        ldy: usize,
+        dx: Option<(&mut [R], usize, R)>,
+        dx_cols: usize,
+    ) {
+        assert!(dx_cols <= self.n_in, "Dense::backward_cols: {dx_cols} of {} input columns", self.n_in);
         // dL/dz from dL/dy through the activation, using y.
         match self.act {
             Act::None => {}
@@ -153,13 +174,13 @@ impl Dense {
             R::one(),
             (&mut grads[self.w..self.w + self.n_in * self.n_out], self.n_out as isize, 1),
         );
-        // dx = dz W^T  (p x n_out) (n_out x n_in).
+        // dx = dz W^T  (p x n_out) (n_out x n_in), the first dx_cols columns (rows of W).
         if let Some((dx, lddx, beta)) = dx {
-            let w = &params[self.w..self.w + self.n_in * self.n_out];
+            let w = &params[self.w..self.w + dx_cols * self.n_out];
             R::gemm(
                 p,
                 self.n_out,
-                self.n_in,
+                dx_cols,
                 R::one(),
                 (dy, ldy as isize, 1),
                 (w, 1, self.n_out as isize),
@@ -195,7 +216,8 @@ pub fn forward_stack<R: Real>(layers: &[Dense], params: &[R], p: usize, x: &[R],
 
 /// Backward through a stack run by [`forward_stack`] on `x` = (rows, stride): `g_out` holds
 /// dL/d(last output) on entry; on return `g_x` holds dL/dx (p x n_in of the first layer,
-/// contiguous). `g_out` and `g_tmp` are scratch.
+/// contiguous) in its first `x_cols` columns (the others are not written). `g_out` and `g_tmp`
+/// are scratch.
 #[allow(clippy::too_many_arguments)]
 pub fn backward_stack<R: Real>(
     layers: &[Dense],
@@ -207,12 +229,15 @@ pub fn backward_stack<R: Real>(
     g_out: &mut Vec<R>,
     g_tmp: &mut Vec<R>,
     g_x: &mut Vec<R>,
+    x_cols: usize,
 ) {
     for i in (0..layers.len()).rev() {
         let l = &layers[i];
         let (input, ld): (&[R], usize) = if i == 0 { x } else { (&h[i - 1], l.n_in) };
         let target: &mut Vec<R> = if i == 0 { g_x } else { g_tmp };
-        l.backward(params, grads, p, input, ld, &h[i], g_out, l.n_out, Some((&mut target[..], l.n_in, R::zero())));
+        let cols = if i == 0 { x_cols } else { l.n_in };
+        let dx = Some((&mut target[..], l.n_in, R::zero()));
+        l.backward_cols(params, grads, p, input, ld, &h[i], g_out, l.n_out, dx, cols);
         if i > 0 {
             std::mem::swap(g_out, g_tmp);
         }

@@ -108,8 +108,10 @@ impl<R: Real> Evals<R> {
 
     /// Runs `field` on the rows: the density of every row, then colour (and, later, the
     /// backward) only for the alive ones: rows whose density after noise is positive, or every
-    /// row when `dense`.
+    /// row when `dense` (whose backward then also differentiates the unused input columns, as
+    /// the engine did before it skipped anything).
     fn eval(&mut self, field: &Field, params: &[R], dense: bool, train: bool) {
+        self.ws.set_all_input_grads(dense);
         field.forward_density(params, &mut self.ws, &self.pos, &mut self.sigma);
         self.keep.clear();
         self.kdir.clear();

@@ -158,8 +158,30 @@ impl VmVolume {
     }
 
     /// Backward of [`components`](Self::components) for one point: scatters dL/dplane and
-    /// dL/dline into `grads` and returns dL/dpos (zero along axes clamped at the border).
-    pub fn components_backward<R: Real>(&self, params: &[R], grads: &mut [R], pos: [R; 3], d_out: &[R]) -> [R; 3] {
+    /// dL/dline into `grads` and, with `want_dpos`, returns dL/dpos (zero along axes clamped at
+    /// the border; all zero without `want_dpos`, which skips its arithmetic).
+    pub fn components_backward<R: Real>(
+        &self,
+        params: &[R],
+        grads: &mut [R],
+        pos: [R; 3],
+        d_out: &[R],
+        want_dpos: bool,
+    ) -> [R; 3] {
+        if want_dpos {
+            self.components_backward_impl::<R, true>(params, grads, pos, d_out)
+        } else {
+            self.components_backward_impl::<R, false>(params, grads, pos, d_out)
+        }
+    }
+
+    fn components_backward_impl<R: Real, const DPOS: bool>(
+        &self,
+        params: &[R],
+        grads: &mut [R],
+        pos: [R; 3],
+        d_out: &[R],
+    ) -> [R; 3] {
         let mut dpos = [R::zero(); 3];
         let mut o = 0;
         for m in 0..3 {
@@ -192,9 +214,11 @@ impl VmVolume {
                         gl[k] = g * lv;
                         gp[k] = g * pv;
                         // Position: d pv / d fu, d pv / d fv, d lv / d fw.
-                        du += gl[k] * ((one - fv) * (q1[k] - q0[k]) + fv * (q3[k] - q2[k]));
-                        dv += gl[k] * ((one - fu) * (q2[k] - q0[k]) + fu * (q3[k] - q1[k]));
-                        dw += gp[k] * (l1[k] - l0[k]);
+                        if DPOS {
+                            du += gl[k] * ((one - fv) * (q1[k] - q0[k]) + fv * (q3[k] - q2[k]));
+                            dv += gl[k] * ((one - fu) * (q2[k] - q0[k]) + fu * (q3[k] - q1[k]));
+                            dw += gp[k] * (l1[k] - l0[k]);
+                        }
                     }
                 }
                 let gplane = &mut grads[self.planes[m]..];

@@ -470,6 +470,30 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
     let e = fails(&["diagnose", "events", &format!("{out}-none")]);
     assert!(e.contains("not a run folder") && e.contains("-none"), "{e}");
 
+    // bench --run times a preset on the run's field on both paths: the dense one with its own
+    // overrides (here fewer importance samples on the skipping path, as the rendered counts
+    // per ray show: 48 coarse + 48 + 8 fine against 48 + 48 + 16); a bad override is refused.
+    let report = ok(&[
+        "bench",
+        "--run",
+        out,
+        "--preset",
+        "nerf",
+        "--reps",
+        "1",
+        "--set",
+        "model.n_fine=8",
+        "--dense-set",
+        "model.n_fine=16",
+    ]);
+    let rows = report.lines().map(|l| l.split_whitespace().collect::<Vec<_>>());
+    let row = rows.filter(|r| r.len() == 12 && r[..2] == ["nerf", "nerf"]).next_back().expect(&report);
+    assert_eq!((row[5], row[7]), ("112", "104"), "{report}");
+    let (density, alive): (f64, f64) = (row[9].parse().unwrap(), row[11].parse().unwrap());
+    assert!(density == 56.0 && alive > 0.0 && alive <= density, "{report}");
+    let e = fails(&["bench", "--run", out, "--preset", "nerf", "--reps", "1", "--set", "model.n_fyne=8"]);
+    assert!(e.contains("n_fyne") && e.contains("model"), "{e}");
+
     // An unknown preset lists the registry.
     let e = fails(&["train", "--data", data, "--preset", "nope", "--out", &format!("{out}-nope"), "--quiet"]);
     assert!(e.contains("nope"), "{e}");

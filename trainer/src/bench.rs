@@ -9,11 +9,13 @@
 //! its dataset, the dense engine and the one that skips samples alternating step by step, with
 //! the samples each evaluated per ray (`evtrain bench --run RUN`). On synthetic rays through a
 //! fresh field the densities are noise, so only a trained field says what skipping saves.
+//! [`BenchSettings`] override settings on both paths or on the dense one only (the engine a
+//! change is measured against, e.g. its former sample counts).
 
 use std::time::Instant;
 
 use crate::checkpoint::Checkpoint;
-use crate::config::TrainConfig;
+use crate::config::{apply_overrides, TrainConfig};
 use crate::data::dataset::Dataset;
 use crate::engine::adam::Adam;
 use crate::engine::model::{Aabb, Model, ModelConfig};
@@ -149,32 +151,52 @@ pub struct FamilyTiming {
     pub skipping: PathTiming,
 }
 
+/// The dense path's overrides when none are given: the engine before it skipped samples.
+pub const DENSE_BASELINE: &[&str] = &["model.dense=true"];
+
+/// What [`time_family`] times: the preset's cpu configuration with `set` applied (both paths),
+/// then `dense_set` on the dense path.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchSettings {
+    /// `KEY=VALUE` overrides for both paths ([`apply_overrides`]).
+    pub set: Vec<String>,
+    /// Overrides for the dense path only, after `set`; `model.dense=true` is always applied.
+    pub dense_set: Vec<String>,
+    /// Timed steps per path (after one warm-up).
+    pub reps: usize,
+    /// Worker threads (0: all cores).
+    pub threads: usize,
+}
+
 /// Times `reps` steps (after one warm-up) of `preset` at the cpu scale, on both engine paths,
 /// alternating a dense step and a skipping step so both see the same machine. The field starts
 /// from `trained` (tensors with the same name and size as the preset's), fitted to the same
 /// box `bounds`, at step `iterations / 2` (blur models, events and schedules switched on), with
-/// a fresh optimiser; `threads` workers (0: all cores).
-#[allow(clippy::too_many_arguments)]
+/// a fresh optimiser.
 pub fn time_family(
     family: &str,
     preset: &str,
     data: &Dataset,
-    trained_layout: &Layout,
-    trained: &[f32],
+    trained: (&Layout, &[f32]),
     bounds: Option<Aabb>,
-    reps: usize,
-    threads: usize,
+    settings: &BenchSettings,
 ) -> Result<FamilyTiming, TrainError> {
+    let (trained_layout, trained) = trained;
     let build = presets::preset(preset)
         .ok_or_else(|| TrainError::Config(format!("bench: no preset {preset} (presets: {:?})", presets::names())))?
         .build;
-    let mut cfg = build(Scale::Cpu);
+    let overrides = |cfg: &TrainConfig, sets: &[String]| {
+        apply_overrides(cfg, sets).map_err(|e| TrainError::Config(format!("bench {preset}: {e}")))
+    };
+    let mut cfg = overrides(&build(Scale::Cpu), &settings.set)?;
     cfg.model.bounds = bounds;
-    cfg.threads = threads;
+    cfg.threads = settings.threads;
+    let mut dense_cfg = overrides(&cfg, &settings.dense_set)?;
+    dense_cfg.model.dense = true;
+    let reps = settings.reps;
     let mut from_run = 0;
     let mut make = |dense: bool| -> Result<Trainer, TrainError> {
-        let mut cfg = cfg.clone();
-        cfg.model.dense = dense;
+        let cfg = if dense { dense_cfg.clone() } else { cfg.clone() };
         let method = Method::new(&cfg, data.views.len());
         let mut params = method.init(cfg.seed);
         from_run = 0;

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
+use trainer::bench::BenchSettings;
 use trainer::checkpoint::Checkpoint;
 use trainer::config::TrainConfig;
 use trainer::data::dataset::{Dataset, LoadOptions};
@@ -100,6 +101,13 @@ enum Cmd {
         /// Worker threads (0: all cores).
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// With --run: override a setting on both paths (KEY=VALUE, as `train --set`).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// With --run: override a setting on the dense path only (default: the engine before it
+        /// skipped samples, `model.dense=true`).
+        #[arg(long = "dense-set", value_name = "KEY=VALUE")]
+        dense_set: Vec<String>,
     },
 }
 
@@ -152,7 +160,14 @@ fn main() -> Result<()> {
         }
         Cmd::Diagnose(Diagnose::Events { run, pairs, seed, threads }) => diagnose_events(&run, pairs, seed, threads),
         Cmd::Bench { reps, run: None, .. } => bench(reps),
-        Cmd::Bench { reps, run: Some(run), presets, threads } => bench_families(&run, &presets, reps, threads),
+        Cmd::Bench { reps, run: Some(run), presets, threads, set, dense_set } => {
+            let dense_set = if dense_set.is_empty() {
+                trainer::bench::DENSE_BASELINE.iter().map(|s| s.to_string()).collect()
+            } else {
+                dense_set
+            };
+            bench_families(&run, &presets, BenchSettings { set, dense_set, reps, threads })
+        }
     }
 }
 
@@ -444,7 +459,8 @@ fn bench(reps: usize) -> Result<()> {
 
 /// `evtrain bench --run`: each preset family's step on the run's trained field, dense against
 /// skipping, side by side.
-fn bench_families(dir: &Path, only: &[String], reps: usize, threads: usize) -> Result<()> {
+fn bench_families(dir: &Path, only: &[String], settings: BenchSettings) -> Result<()> {
+    let reps = settings.reps;
     if reps == 0 {
         bail!("--reps 0: time at least one step");
     }
@@ -463,8 +479,17 @@ fn bench_families(dir: &Path, only: &[String], reps: usize, threads: usize) -> R
         record.data.display(),
         reps
     );
+    let plus = |s: &[String]| s.iter().map(|x| format!(" + {x}")).collect::<String>();
+    let both = plus(&settings.set);
+    let dense = plus(&settings.dense_set);
+    let dense = if settings.dense_set.iter().any(|s| s.replace(' ', "") == "model.dense=true") {
+        dense
+    } else {
+        format!("{dense} + model.dense=true")
+    };
+    println!("dense path: preset{both}{dense}; skipping path: preset{both}");
     println!(
-        "{:<20} {:<16} {:>9} {:>9} {:>7}   samples per ray: rendered / density / alive (skipping)",
+        "{:<20} {:<16} {:>9} {:>9} {:>7}   samples per ray: rendered dense | rendered / density / alive skipping",
         "family", "preset", "dense ms", "skip ms", "ratio"
     );
     for (family, preset) in families {
@@ -472,19 +497,18 @@ fn bench_families(dir: &Path, only: &[String], reps: usize, threads: usize) -> R
             &family,
             &preset,
             &dataset,
-            method.layout(),
-            &ck.params,
+            (method.layout(), &ck.params),
             record.config.model.bounds,
-            reps,
-            threads,
+            &settings,
         )?;
         println!(
-            "{:<20} {:<16} {:>9.1} {:>9.1} {:>6.2}x   {:.0} / {:.1} / {:.1}{}",
+            "{:<20} {:<16} {:>9.1} {:>9.1} {:>6.2}x   {:.0} | {:.0} / {:.1} / {:.1}{}",
             t.family,
             t.preset,
             t.dense.median_ms,
             t.skipping.median_ms,
             t.dense.median_ms / t.skipping.median_ms,
+            t.dense.rendered_per_ray,
             t.skipping.rendered_per_ray,
             t.skipping.density_per_ray,
             t.skipping.alive_per_ray,

@@ -486,8 +486,8 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
         "--dense-set",
         "model.n_fine=16",
     ]);
-    let rows = report.lines().map(|l| l.split_whitespace().collect::<Vec<_>>());
-    let row = rows.filter(|r| r.len() == 12 && r[..2] == ["nerf", "nerf"]).next_back().expect(&report);
+    let mut rows = report.lines().map(|l| l.split_whitespace().collect::<Vec<_>>());
+    let row = rows.rfind(|r| r.len() == 12 && r[..2] == ["nerf", "nerf"]).expect(&report);
     assert_eq!((row[5], row[7]), ("112", "104"), "{report}");
     let (density, alive): (f64, f64) = (row[9].parse().unwrap(), row[11].parse().unwrap());
     assert!(density == 56.0 && alive > 0.0 && alive <= density, "{report}");

@@ -113,27 +113,6 @@ impl Dense {
         ldy: usize,
         dx: Option<(&mut [R], usize, R)>,
     ) {
-        self.backward_cols(params, grads, p, x, ldx, y, dy, ldy, dx, self.n_in);
-    }
-
-    /// [`backward`](Self::backward) computing dL/dx only for the first `dx_cols` input columns
-    /// (the others of `dx` are left untouched): an input block nobody differentiates, such as
-    /// a positional encoding, costs no multiply-adds.
-    #[allow(clippy::too_many_arguments)]
-    pub fn backward_cols<R: Real>(
-        &self,
-        params: &[R],
-        grads: &mut [R],
-        p: usize,
-        x: &[R],
-        ldx: usize,
-        y: &[R],
-        dy: &mut [R],
-        ldy: usize,
-        dx: Option<(&mut [R], usize, R)>,
-        dx_cols: usize,
-    ) {
-        assert!(dx_cols <= self.n_in, "Dense::backward_cols: {dx_cols} of {} input columns", self.n_in);
         // dL/dz from dL/dy through the activation, using y.
         match self.act {
             Act::None => {}
@@ -174,20 +153,37 @@ impl Dense {
             R::one(),
             (&mut grads[self.w..self.w + self.n_in * self.n_out], self.n_out as isize, 1),
         );
-        // dx = dz W^T  (p x n_out) (n_out x n_in), the first dx_cols columns (rows of W).
         if let Some((dx, lddx, beta)) = dx {
-            let w = &params[self.w..self.w + dx_cols * self.n_out];
-            R::gemm(
-                p,
-                self.n_out,
-                dx_cols,
-                R::one(),
-                (dy, ldy as isize, 1),
-                (w, 1, self.n_out as isize),
-                beta,
-                (dx, lddx as isize, 1),
-            );
+            self.input_grad(params, p, dy, ldy, (dx, lddx, beta), self.n_in);
         }
+    }
+
+    /// dx = dz W^T (p x n_out)(n_out x n_in) for the first `cols` input columns only (the
+    /// others of `dx` are left untouched), written (`beta` = 0) or added (`beta` = 1); `dz`
+    /// (p x n_out, stride ldz) as [`backward`](Self::backward) leaves it. An input block nobody
+    /// differentiates, such as a positional encoding, then costs no multiply-adds.
+    pub fn input_grad<R: Real>(
+        &self,
+        params: &[R],
+        p: usize,
+        dz: &[R],
+        ldz: usize,
+        dx: (&mut [R], usize, R),
+        cols: usize,
+    ) {
+        assert!(cols <= self.n_in, "Dense::input_grad: {cols} of {} input columns", self.n_in);
+        let (dx, lddx, beta) = dx;
+        let w = &params[self.w..self.w + cols * self.n_out];
+        R::gemm(
+            p,
+            self.n_out,
+            cols,
+            R::one(),
+            (dz, ldz as isize, 1),
+            (w, 1, self.n_out as isize),
+            beta,
+            (dx, lddx as isize, 1),
+        );
     }
 }
 
@@ -235,9 +231,12 @@ pub fn backward_stack<R: Real>(
         let l = &layers[i];
         let (input, ld): (&[R], usize) = if i == 0 { x } else { (&h[i - 1], l.n_in) };
         let target: &mut Vec<R> = if i == 0 { g_x } else { g_tmp };
-        let cols = if i == 0 { x_cols } else { l.n_in };
-        let dx = Some((&mut target[..], l.n_in, R::zero()));
-        l.backward_cols(params, grads, p, input, ld, &h[i], g_out, l.n_out, dx, cols);
+        if i == 0 && x_cols < l.n_in {
+            l.backward(params, grads, p, input, ld, &h[i], g_out, l.n_out, None);
+            l.input_grad(params, p, g_out, l.n_out, (&mut target[..], l.n_in, R::zero()), x_cols);
+        } else {
+            l.backward(params, grads, p, input, ld, &h[i], g_out, l.n_out, Some((&mut target[..], l.n_in, R::zero())));
+        }
         if i > 0 {
             std::mem::swap(g_out, g_tmp);
         }

@@ -73,9 +73,8 @@ pub struct FieldWorkspace<R> {
 impl<R> FieldWorkspace<R> {
     /// With `all`, [`Field::backward`] computes dL/d(input) for the positional encodings' columns
     /// and the volumes' position gradients even when no position or direction gradient is asked
-    /// for (work the result never reads):
-    /// the engine as it was before it skipped samples, kept for `model.dense`'s side-by-side
-    /// timings.
+    /// for (work the result never reads): the engine as it was before it skipped samples, kept
+    /// for `model.dense`'s side-by-side timings.
     pub fn set_all_input_grads(&mut self, all: bool) {
         self.all_input_grads = all;
     }

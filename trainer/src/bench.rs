@@ -151,9 +151,6 @@ pub struct FamilyTiming {
     pub skipping: PathTiming,
 }
 
-/// The dense path's overrides when none are given: the engine before it skipped samples.
-pub const DENSE_BASELINE: &[&str] = &["model.dense=true"];
-
 /// What [`time_family`] times: the preset's cpu configuration with `set` applied (both paths),
 /// then `dense_set` on the dense path.
 #[derive(Clone, Debug, PartialEq)]

@@ -104,8 +104,8 @@ enum Cmd {
         /// With --run: override a setting on both paths (KEY=VALUE, as `train --set`).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// With --run: override a setting on the dense path only (default: the engine before it
-        /// skipped samples, `model.dense=true`).
+        /// With --run: override a setting on the dense path only (which always has
+        /// `model.dense=true`: the engine before it skipped samples).
         #[arg(long = "dense-set", value_name = "KEY=VALUE")]
         dense_set: Vec<String>,
     },
@@ -161,11 +161,6 @@ fn main() -> Result<()> {
         Cmd::Diagnose(Diagnose::Events { run, pairs, seed, threads }) => diagnose_events(&run, pairs, seed, threads),
         Cmd::Bench { reps, run: None, .. } => bench(reps),
         Cmd::Bench { reps, run: Some(run), presets, threads, set, dense_set } => {
-            let dense_set = if dense_set.is_empty() {
-                trainer::bench::DENSE_BASELINE.iter().map(|s| s.to_string()).collect()
-            } else {
-                dense_set
-            };
             bench_families(&run, &presets, BenchSettings { set, dense_set, reps, threads })
         }
     }
@@ -482,12 +477,7 @@ fn bench_families(dir: &Path, only: &[String], settings: BenchSettings) -> Resul
     let plus = |s: &[String]| s.iter().map(|x| format!(" + {x}")).collect::<String>();
     let both = plus(&settings.set);
     let dense = plus(&settings.dense_set);
-    let dense = if settings.dense_set.iter().any(|s| s.replace(' ', "") == "model.dense=true") {
-        dense
-    } else {
-        format!("{dense} + model.dense=true")
-    };
-    println!("dense path: preset{both}{dense}; skipping path: preset{both}");
+    println!("dense path: preset{both}{dense} + model.dense=true; skipping path: preset{both}");
     println!(
         "{:<20} {:<16} {:>9} {:>9} {:>7}   samples per ray: rendered dense | rendered / density / alive skipping",
         "family", "preset", "dense ms", "skip ms", "ratio"

@@ -223,6 +223,10 @@ fn tv_gradient_matches_finite_differences() {
     let mut grads = layout.zeros::<f64>();
     let l0 = v.tv(&params, &mut grads, 0.7, 0.3);
     assert!(l0 > 0.0);
+    // Training's gradient-only form: the same values, bit for bit.
+    let mut g_only = layout.zeros::<f64>();
+    v.tv_grad(&params, &mut g_only, 0.7, 0.3);
+    assert!(g_only.iter().zip(&grads).all(|(a, b)| a.to_bits() == b.to_bits()));
     let h = 1e-6;
     for i in 0..v.basis.w {
         let mut pp = params.clone();

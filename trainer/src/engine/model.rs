@@ -148,12 +148,15 @@ impl Model {
         params
     }
 
-    /// TV regulariser of every volume: adds its gradient to `grads`, returns the loss.
-    pub fn tv(&self, params: &[f32], grads: &mut [f32]) -> f64 {
+    /// TV regulariser of every volume: adds its gradient to `grads` (the loss itself is not
+    /// summed: training never reads it; [`VmVolume::tv`] gives it).
+    pub fn tv(&self, params: &[f32], grads: &mut [f32]) {
         if self.config.tv_plane == 0.0 && self.config.tv_line == 0.0 {
-            return 0.0;
+            return;
         }
-        self.volumes.iter().map(|v| v.tv(params, grads, self.config.tv_plane, self.config.tv_line)).sum()
+        for v in &self.volumes {
+            v.tv_grad(params, grads, self.config.tv_plane, self.config.tv_line);
+        }
     }
 
     /// Samples per ray of the fine pass (coarse + importance).

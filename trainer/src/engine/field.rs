@@ -8,7 +8,7 @@
 //! [`FieldWorkspace`] (rows = samples), so a forward + backward over a chunk allocates nothing.
 
 use super::encoding;
-use super::mlp::{backward_stack, forward_stack, Act, Dense};
+use super::mlp::{backward_stack, forward_stack, Act, Dense, Runs};
 use super::params::Layout;
 use super::real::Real;
 use super::vm::VmVolume;
@@ -65,6 +65,12 @@ pub struct FieldWorkspace<R> {
     g_b: Vec<R>,
     g_x: Vec<R>,
     g_comps: Vec<R>,
+    /// Runs of rows sharing a view direction (first row of each, then the row count), each
+    /// run's PE(d), and scratch for the colour MLP's first layer.
+    runs: Vec<u32>,
+    pe_runs: Vec<R>,
+    run_base: Vec<R>,
+    d_pe_runs: Vec<R>,
     /// Whether the backward differentiates every input column (see
     /// [`set_all_input_grads`](Self::set_all_input_grads)).
     all_input_grads: bool,
@@ -73,8 +79,9 @@ pub struct FieldWorkspace<R> {
 impl<R> FieldWorkspace<R> {
     /// With `all`, [`Field::backward`] computes dL/d(input) for the positional encodings' columns
     /// and the volumes' position gradients even when no position or direction gradient is asked
-    /// for (work the result never reads): the engine as it was before it skipped samples, kept
-    /// for `model.dense`'s side-by-side timings.
+    /// for (work the result never reads), and the colour MLP multiplies every row's PE(d)
+    /// (rather than once per run of rows sharing a direction): the engine as it was before it
+    /// skipped samples, kept for `model.dense`'s side-by-side timings.
     pub fn set_all_input_grads(&mut self, all: bool) {
         self.all_input_grads = all;
     }
@@ -163,7 +170,7 @@ impl Field {
         rgb: &mut [[R; 3]],
     ) {
         self.forward_density(params, ws, pos, sigma);
-        self.forward_colour(params, ws, None, dir, rgb);
+        self.forward_colour(params, ws, None, None, dir, rgb);
     }
 
     /// The first half of [`forward`](Self::forward): volume features, positional encoding and
@@ -200,12 +207,16 @@ impl Field {
     /// [`forward_density`](Self::forward_density): with `keep` (increasing row indices), first
     /// drops every other row from `ws` (rows `keep[j]` move to `j`), so the colour MLP and the
     /// [`backward`](Self::backward) then see only the kept samples; `dir` and `rgb` have one
-    /// entry per kept row (per row without `keep`).
+    /// entry per kept row (per row without `keep`), as `ray` (each row's ray, if given):
+    /// consecutive rows of one ray (without `ray`: any consecutive rows) with equal directions
+    /// form a run that shares one PE(d) product and one direction gradient.
+    #[allow(clippy::too_many_arguments)]
     pub fn forward_colour<R: Real>(
         &self,
         params: &[R],
         ws: &mut FieldWorkspace<R>,
         keep: Option<&[u32]>,
+        ray: Option<&[u32]>,
         dir: &[[R; 3]],
         rgb: &mut [[R; 3]],
     ) {
@@ -233,6 +244,7 @@ impl Field {
         }
         let p = ws.rows;
         assert_eq!(dir.len(), p, "forward_colour: {} directions for {p} rows", dir.len());
+        assert!(ray.is_none_or(|r| r.len() == p), "forward_colour: rays for {p} rows");
         // Features (after the raw density) and PE(d) form the colour input.
         let nf = self.shape.features;
         let dc = self.d_colour_in();
@@ -240,9 +252,32 @@ impl Field {
         let dw = encoding::width(self.shape.pe_dir);
         for i in 0..p {
             ws.x_colour[i * dc..i * dc + nf].copy_from_slice(&out[i * (1 + nf) + 1..(i + 1) * (1 + nf)]);
-            encoding::encode(dir[i], self.shape.pe_dir, &mut ws.x_colour[i * dc + nf..i * dc + nf + dw]);
         }
-        forward_stack(&self.colour, params, p, &ws.x_colour, self.d_colour_in(), &mut ws.h_colour);
+        if ws.all_input_grads {
+            for i in 0..p {
+                encoding::encode(dir[i], self.shape.pe_dir, &mut ws.x_colour[i * dc + nf..i * dc + nf + dw]);
+            }
+            forward_stack(&self.colour, params, p, &ws.x_colour, dc, &mut ws.h_colour);
+        } else {
+            // A ray's samples share its direction: PE(d) and its product with the first
+            // layer's weights once per run of equal directions.
+            ws.runs.clear();
+            ws.pe_runs.clear();
+            for i in 0..p {
+                if i == 0 || dir[i] != dir[i - 1] || ray.is_some_and(|r| r[i] != r[i - 1]) {
+                    ws.runs.push(i as u32);
+                    let at = ws.pe_runs.len();
+                    ws.pe_runs.resize(at + dw, R::zero());
+                    encoding::encode(dir[i], self.shape.pe_dir, &mut ws.pe_runs[at..]);
+                }
+            }
+            ws.runs.push(p as u32);
+            let (first, rest) = self.colour.split_first().expect("colour MLP has an output layer");
+            let (h0, h_rest) = ws.h_colour.split_first_mut().expect("colour MLP has an output layer");
+            let runs = Runs { starts: &ws.runs, x: &ws.pe_runs };
+            first.forward_runs(params, (&ws.x_colour, dc), nf, runs, h0, first.n_out, &mut ws.run_base);
+            forward_stack(rest, params, p, h0, first.n_out, h_rest);
+        }
         let c = ws.h_colour.last().expect("colour MLP has an output layer");
         for i in 0..p {
             rgb[i] = [c[3 * i], c[3 * i + 1], c[3 * i + 2]];
@@ -260,7 +295,9 @@ impl Field {
     /// Backward of the last [`forward`](Self::forward) on `ws`: accumulates parameter gradients
     /// into `grads`; `d_features` (p x features, optional) is a loss's direct gradient on the
     /// [`features`](Self::features); when `d_pos` / `d_dir` are given, writes dL/dpos and
-    /// dL/ddir into them.
+    /// dL/ddir into them (consecutive rows with equal directions share one PE(d) product, so
+    /// such a run's summed direction gradient is written to its first row and zero to the
+    /// others, unless the workspace [asks for every input gradient](FieldWorkspace::set_all_input_grads)).
     #[allow(clippy::too_many_arguments)]
     pub fn backward<R: Real>(
         &self,
@@ -279,33 +316,67 @@ impl Field {
         let nf = self.shape.features;
         let dc = self.d_colour_in();
         let dd = self.d_density_in();
-        // Colour MLP, down to its input (features | PE(d)); the PE(d) columns only when d_dir is
-        // wanted, as the PE(x) columns of the density input only when d_pos is.
+        // Colour MLP, down to its input (features | PE(d)); the PE(d) part per run of rows and
+        // only when d_dir is wanted, as the PE(x) columns of the density input only when d_pos
+        // is (all of it per row with `all`, the dense engine).
         let all = ws.all_input_grads;
-        let colour_cols = if all || d_dir.is_some() { dc } else { nf };
         let vol_cols: usize = self.volumes.iter().map(|v| v.n_features()).sum();
         let density_cols = if all || d_pos.is_some() { dd } else { vol_cols };
         for i in 0..p {
             ws.g_a[3 * i..3 * i + 3].copy_from_slice(&d_rgb[i]);
         }
-        backward_stack(
-            &self.colour,
-            params,
-            grads,
-            p,
-            (&ws.x_colour, dc),
-            &ws.h_colour,
-            &mut ws.g_a,
-            &mut ws.g_b,
-            &mut ws.g_x,
-            colour_cols,
-        );
-        // ws.g_x now holds dL/d x_colour (p x dc) in its first colour_cols columns.
-        if let Some(d_dir) = d_dir {
-            let dw = encoding::width(self.shape.pe_dir);
-            for i in 0..p {
-                let enc = &ws.x_colour[i * dc + nf..i * dc + nf + dw];
-                d_dir[i] = encoding::backward(enc, &ws.g_x[i * dc + nf..i * dc + nf + dw], self.shape.pe_dir);
+        let dw = encoding::width(self.shape.pe_dir);
+        if all {
+            backward_stack(
+                &self.colour,
+                params,
+                grads,
+                p,
+                (&ws.x_colour, dc),
+                &ws.h_colour,
+                &mut ws.g_a,
+                &mut ws.g_b,
+                &mut ws.g_x,
+                dc,
+            );
+            // ws.g_x now holds dL/d x_colour (p x dc).
+            if let Some(d_dir) = d_dir {
+                for i in 0..p {
+                    let enc = &ws.x_colour[i * dc + nf..i * dc + nf + dw];
+                    d_dir[i] = encoding::backward(enc, &ws.g_x[i * dc + nf..i * dc + nf + dw], self.shape.pe_dir);
+                }
+            }
+        } else {
+            // The layers above the first, then the first over the runs of the forward.
+            let (first, rest) = self.colour.split_first().expect("colour MLP has an output layer");
+            let (h0, h_rest) = ws.h_colour.split_first().expect("colour MLP has an output layer");
+            let n0 = first.n_out;
+            let runs = Runs { starts: &ws.runs, x: &ws.pe_runs };
+            let x = (&ws.x_colour[..], dc);
+            // dz of the first layer ends in g_a (no layers above) or g_x; dL/d features into
+            // g_x (p x dc, first nf columns) either way.
+            if rest.is_empty() {
+                first.backward_runs(grads, x, nf, runs, h0, &mut ws.g_a, n0, &mut ws.run_base);
+                first.input_grad_cols(params, p, &ws.g_a, n0, (&mut ws.g_x[..], dc, R::zero()), 0..nf);
+            } else {
+                backward_stack(rest, params, grads, p, (h0, n0), h_rest, &mut ws.g_a, &mut ws.g_b, &mut ws.g_x, n0);
+                first.backward_runs(grads, x, nf, runs, h0, &mut ws.g_x, n0, &mut ws.run_base);
+                first.input_grad_cols(params, p, &ws.g_x, n0, (&mut ws.g_b[..], dc, R::zero()), 0..nf);
+                std::mem::swap(&mut ws.g_x, &mut ws.g_b);
+            }
+            if let Some(d_dir) = d_dir {
+                // Each run's direction gradient (from its summed dz), on its first row; the
+                // run's other rows get zero.
+                let nr = ws.runs.len() - 1;
+                let d_pe = &mut ws.d_pe_runs;
+                d_pe.resize(nr * dw, R::zero());
+                first.input_grad_cols(params, nr, &ws.run_base, n0, (&mut d_pe[..], dw, R::zero()), nf..dc);
+                for r in 0..nr {
+                    let rows = ws.runs[r] as usize..ws.runs[r + 1] as usize;
+                    let enc = &ws.pe_runs[r * dw..(r + 1) * dw];
+                    d_dir[rows.start] = encoding::backward(enc, &d_pe[r * dw..(r + 1) * dw], self.shape.pe_dir);
+                    d_dir[rows.start + 1..rows.end].fill([R::zero(); 3]);
+                }
             }
         }
         // Density MLP output gradient: (d sigma, d features).

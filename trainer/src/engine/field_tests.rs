@@ -93,11 +93,30 @@ fn inputs(p: usize) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
     (pos, dir)
 }
 
+/// Rows of a ray share its direction: rows 0-2 and 4-5 here (3 and 6 alone).
+fn runs_of_directions(dir: &mut [[f64; 3]]) -> Vec<std::ops::Range<usize>> {
+    dir[1] = dir[0];
+    dir[2] = dir[0];
+    dir[5] = dir[4];
+    vec![0..3, 3..4, 4..6, 6..7]
+}
+
 fn check_field(bias: bool, two_volumes: bool, features: bool) {
+    for all in [false, true] {
+        check_field_with(bias, two_volumes, features, all);
+    }
+}
+
+/// Finite differences against every parameter gradient and the position gradients; the
+/// direction gradients summed over each run of rows sharing a direction (the field may put a
+/// run's on its first row) against moving the run's direction.
+fn check_field_with(bias: bool, two_volumes: bool, features: bool, all: bool) {
     let (field, layout, params) = tiny_field(bias, two_volumes);
     let p = 7;
-    let (pos, dir) = inputs(p);
+    let (pos, mut dir) = inputs(p);
+    let runs = runs_of_directions(&mut dir);
     let mut ws = FieldWorkspace::default();
+    ws.set_all_input_grads(all);
     let mut sigma = vec![0.0; p];
     let mut rgb = vec![[0.0; 3]; p];
     field.forward(&params, &mut ws, &pos, &dir, &mut sigma, &mut rgb);
@@ -139,28 +158,60 @@ fn check_field(bias: bool, two_volumes: bool, features: bool) {
         nonzero += (grads[i].abs() > 1e-8) as usize;
     }
     assert!(nonzero > params.len() / 4, "only {nonzero} of {} gradients are non-zero", params.len());
-    // Positions and directions.
+    // Positions, one row at a time.
     for s in 0..p {
         for a in 0..3 {
-            for (which, base, an) in [("pos", &pos, d_pos[s][a]), ("dir", &dir, d_dir[s][a])] {
-                let mut xp = base.clone();
+            let (mut xp, mut xm) = (pos.clone(), pos.clone());
+            xp[s][a] += h;
+            xm[s][a] -= h;
+            let lp = loss(&field, &params, &xp, &dir, &mut ws, features);
+            let lm = loss(&field, &params, &xm, &dir, &mut ws, features);
+            close((lp - lm) / (2.0 * h), d_pos[s][a], &format!("dpos[{s}][{a}] (all {all})"));
+            assert!(d_pos[s][a].abs() > 1e-9, "dpos[{s}][{a}] is zero");
+        }
+    }
+    // Directions, a run at a time.
+    for run in &runs {
+        for a in 0..3 {
+            let (mut xp, mut xm) = (dir.clone(), dir.clone());
+            for s in run.clone() {
                 xp[s][a] += h;
-                let mut xm = base.clone();
                 xm[s][a] -= h;
-                let (lp, lm) = if which == "pos" {
-                    (
-                        loss(&field, &params, &xp, &dir, &mut ws, features),
-                        loss(&field, &params, &xm, &dir, &mut ws, features),
-                    )
-                } else {
-                    (
-                        loss(&field, &params, &pos, &xp, &mut ws, features),
-                        loss(&field, &params, &pos, &xm, &mut ws, features),
-                    )
-                };
-                close((lp - lm) / (2.0 * h), an, &format!("d{which}[{s}][{a}]"));
-                assert!(an.abs() > 1e-9, "d{which}[{s}][{a}] is zero");
             }
+            let lp = loss(&field, &params, &pos, &xp, &mut ws, features);
+            let lm = loss(&field, &params, &pos, &xm, &mut ws, features);
+            let an: f64 = run.clone().map(|s| d_dir[s][a]).sum();
+            close((lp - lm) / (2.0 * h), an, &format!("ddir of rows {run:?} [{a}] (all {all})"));
+            assert!(an.abs() > 1e-9, "ddir of rows {run:?} [{a}] is zero");
+        }
+    }
+}
+
+/// A run of rows sharing a direction gives the colours and parameter gradients of
+/// multiplying every row's PE(d) (the dense engine's way), up to rounding.
+#[test]
+fn shared_directions_change_nothing_but_rounding() {
+    for bias in [false, true] {
+        let (field, layout, params) = tiny_field(bias, true);
+        let p = 7;
+        let (pos, mut dir) = inputs(p);
+        runs_of_directions(&mut dir);
+        let (d_sigma, d_rgb) = weights(p);
+        let run = |all: bool| {
+            let mut ws = FieldWorkspace::default();
+            ws.set_all_input_grads(all);
+            let (mut sigma, mut rgb) = (vec![0.0; p], vec![[0.0; 3]; p]);
+            field.forward(&params, &mut ws, &pos, &dir, &mut sigma, &mut rgb);
+            let mut grads = layout.zeros::<f64>();
+            field.backward(&params, &mut grads, &mut ws, &pos, &d_sigma, &d_rgb, None, None, None);
+            (rgb, grads)
+        };
+        let ((rgb_runs, g_runs), (rgb_rows, g_rows)) = (run(false), run(true));
+        for (a, b) in rgb_runs.iter().flatten().zip(rgb_rows.iter().flatten()) {
+            assert!((a - b).abs() <= 1e-14, "colour {a} vs {b}");
+        }
+        for (i, (a, b)) in g_runs.iter().zip(&g_rows).enumerate() {
+            assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "param {i}: {a} with runs vs {b}");
         }
     }
 }

@@ -78,6 +78,11 @@ impl Dense {
             beta,
             (y, ldy as isize, 1),
         );
+        self.activate(p, y, ldy);
+    }
+
+    /// y = act(y) over p rows (stride ldy).
+    fn activate<R: Real>(&self, p: usize, y: &mut [R], ldy: usize) {
         match self.act {
             Act::None => {}
             Act::Relu => {
@@ -92,6 +97,38 @@ impl Dense {
                     for v in &mut y[r * ldy..r * ldy + self.n_out] {
                         *v = R::one() / (R::one() + (-*v).exp());
                     }
+                }
+            }
+        }
+    }
+
+    /// dy = dL/dy * act'(z) over p rows (stride ldy), from the outputs y; then db += its
+    /// column sums.
+    fn act_backward<R: Real>(&self, grads: &mut [R], p: usize, y: &[R], dy: &mut [R], ldy: usize) {
+        match self.act {
+            Act::None => {}
+            Act::Relu => {
+                for r in 0..p {
+                    let (yr, dr) = (&y[r * ldy..r * ldy + self.n_out], &mut dy[r * ldy..r * ldy + self.n_out]);
+                    for (d, &v) in dr.iter_mut().zip(yr) {
+                        *d = if v > R::zero() { *d } else { R::zero() };
+                    }
+                }
+            }
+            Act::Sigmoid => {
+                for r in 0..p {
+                    let (yr, dr) = (&y[r * ldy..r * ldy + self.n_out], &mut dy[r * ldy..r * ldy + self.n_out]);
+                    for (d, &s) in dr.iter_mut().zip(yr) {
+                        *d *= s * (R::one() - s);
+                    }
+                }
+            }
+        }
+        if let Some(b) = self.b {
+            let db = &mut grads[b..b + self.n_out];
+            for r in 0..p {
+                for (g, &d) in db.iter_mut().zip(&dy[r * ldy..r * ldy + self.n_out]) {
+                    *g += d;
                 }
             }
         }
@@ -113,35 +150,8 @@ impl Dense {
         ldy: usize,
         dx: Option<(&mut [R], usize, R)>,
     ) {
-        // dL/dz from dL/dy through the activation, using y.
-        match self.act {
-            Act::None => {}
-            Act::Relu => {
-                for r in 0..p {
-                    let (yr, dr) = (&y[r * ldy..r * ldy + self.n_out], &mut dy[r * ldy..r * ldy + self.n_out]);
-                    for (d, &v) in dr.iter_mut().zip(yr) {
-                        *d = if v > R::zero() { *d } else { R::zero() };
-                    }
-                }
-            }
-            Act::Sigmoid => {
-                for r in 0..p {
-                    let (yr, dr) = (&y[r * ldy..r * ldy + self.n_out], &mut dy[r * ldy..r * ldy + self.n_out]);
-                    for (d, &s) in dr.iter_mut().zip(yr) {
-                        *d *= s * (R::one() - s);
-                    }
-                }
-            }
-        }
-        // db += column sums of dz.
-        if let Some(b) = self.b {
-            let db = &mut grads[b..b + self.n_out];
-            for r in 0..p {
-                for (g, &d) in db.iter_mut().zip(&dy[r * ldy..r * ldy + self.n_out]) {
-                    *g += d;
-                }
-            }
-        }
+        // dL/dz from dL/dy through the activation, using y; db += column sums of dz.
+        self.act_backward(grads, p, y, dy, ldy);
         // dW += x^T dz  (n_in x p) (p x n_out).
         R::gemm(
             self.n_in,
@@ -171,18 +181,156 @@ impl Dense {
         dx: (&mut [R], usize, R),
         cols: usize,
     ) {
-        assert!(cols <= self.n_in, "Dense::input_grad: {cols} of {} input columns", self.n_in);
+        self.input_grad_cols(params, p, dz, ldz, dx, 0..cols);
+    }
+
+    /// dx = dz W[cols]^T for the input columns `cols` (`dx` holds just those, column 0 being
+    /// `cols.start`), written (`beta` = 0) or added (`beta` = 1).
+    pub fn input_grad_cols<R: Real>(
+        &self,
+        params: &[R],
+        p: usize,
+        dz: &[R],
+        ldz: usize,
+        dx: (&mut [R], usize, R),
+        cols: std::ops::Range<usize>,
+    ) {
+        assert!(cols.end <= self.n_in, "Dense::input_grad: columns {cols:?} of {}", self.n_in);
         let (dx, lddx, beta) = dx;
-        let w = &params[self.w..self.w + cols * self.n_out];
+        let w = &params[self.w + cols.start * self.n_out..self.w + cols.end * self.n_out];
         R::gemm(
             p,
             self.n_out,
-            cols,
+            cols.len(),
             R::one(),
             (dz, ldz as isize, 1),
             (w, 1, self.n_out as isize),
             beta,
             (dx, lddx as isize, 1),
+        );
+    }
+}
+
+/// Rows of a chunk grouped in runs that share the input columns `split..n_in` of one
+/// [`Dense`] layer (a ray's samples share its encoded view direction): `starts` holds each
+/// run's first row and, last, the row count; `x` holds each run's shared columns (runs x
+/// (n_in - split), contiguous). [`Dense::forward_runs`] then multiplies the shared columns
+/// once per run instead of once per row.
+#[derive(Clone, Copy, Debug)]
+pub struct Runs<'a, R> {
+    /// First row of each run, then the row count.
+    pub starts: &'a [u32],
+    /// The shared input columns of each run.
+    pub x: &'a [R],
+}
+
+impl<R> Runs<'_, R> {
+    fn len(&self) -> usize {
+        self.starts.len() - 1
+    }
+
+    fn rows(&self, r: usize) -> std::ops::Range<usize> {
+        self.starts[r] as usize..self.starts[r + 1] as usize
+    }
+}
+
+impl Dense {
+    /// [`forward`](Self::forward) for rows whose columns `split..` are `runs`' (so `x` needs
+    /// only its first `split` columns filled): y = act(x[:, ..split] W[..split] + x_run
+    /// W[split..] + b). `base` is scratch.
+    #[allow(clippy::too_many_arguments)]
+    pub fn forward_runs<R: Real>(
+        &self,
+        params: &[R],
+        (x, ldx): (&[R], usize),
+        split: usize,
+        runs: Runs<'_, R>,
+        y: &mut [R],
+        ldy: usize,
+        base: &mut Vec<R>,
+    ) {
+        let (n, k2, nr) = (self.n_out, self.n_in - split, runs.len());
+        let p = runs.starts[nr] as usize;
+        let w = &params[self.w..self.w + self.n_in * n];
+        base.clear();
+        base.resize(nr * n, R::zero());
+        let beta = match self.b {
+            Some(b) => {
+                for row in base.chunks_exact_mut(n) {
+                    row.copy_from_slice(&params[b..b + n]);
+                }
+                R::one()
+            }
+            None => R::zero(),
+        };
+        R::gemm(
+            nr,
+            k2,
+            n,
+            R::one(),
+            (runs.x, k2 as isize, 1),
+            (&w[split * n..], n as isize, 1),
+            beta,
+            (base, n as isize, 1),
+        );
+        for r in 0..nr {
+            for i in runs.rows(r) {
+                y[i * ldy..i * ldy + n].copy_from_slice(&base[r * n..(r + 1) * n]);
+            }
+        }
+        R::gemm(p, split, n, R::one(), (x, ldx as isize, 1), (w, n as isize, 1), R::one(), (y, ldy as isize, 1));
+        self.activate(p, y, ldy);
+    }
+
+    /// Backward of [`forward_runs`](Self::forward_runs): `dy` (stride ldy) holds dL/dy on
+    /// entry and dL/dz on return; accumulates dW and db into `grads` (the shared columns' part
+    /// from each run's summed dz, left in `dz_runs`, runs x n_out). The input gradients then
+    /// come from [`input_grad_cols`](Self::input_grad_cols): of the rows' columns from `dy`,
+    /// of the runs' from `dz_runs`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn backward_runs<R: Real>(
+        &self,
+        grads: &mut [R],
+        (x, ldx): (&[R], usize),
+        split: usize,
+        runs: Runs<'_, R>,
+        y: &[R],
+        dy: &mut [R],
+        ldy: usize,
+        dz_runs: &mut Vec<R>,
+    ) {
+        let (n, k2, nr) = (self.n_out, self.n_in - split, runs.len());
+        let p = runs.starts[nr] as usize;
+        self.act_backward(grads, p, y, dy, ldy);
+        R::gemm(
+            split,
+            p,
+            n,
+            R::one(),
+            (x, 1, ldx as isize),
+            (dy, ldy as isize, 1),
+            R::one(),
+            (&mut grads[self.w..self.w + split * n], n as isize, 1),
+        );
+        dz_runs.clear();
+        dz_runs.resize(nr * n, R::zero());
+        for r in 0..nr {
+            let acc = &mut dz_runs[r * n..(r + 1) * n];
+            for i in runs.rows(r) {
+                for (a, d) in acc.iter_mut().zip(&dy[i * ldy..i * ldy + n]) {
+                    *a += *d;
+                }
+            }
+        }
+        R::gemm(
+            k2,
+            nr,
+            n,
+            R::one(),
+            (runs.x, 1, k2 as isize),
+            (dz_runs, n as isize, 1),
+            R::one(),
+            (&mut grads[self.w + split * n..self.w + self.n_in * n], n as isize, 1),
         );
     }
 }

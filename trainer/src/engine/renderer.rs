@@ -64,6 +64,7 @@ struct Evals<R> {
     kidx: Vec<u32>,
     kpos: Vec<[R; 3]>,
     kdir: Vec<[R; 3]>,
+    kray: Vec<u32>,
     krgb: Vec<[R; 3]>,
     /// dL/d raw density, dL/d colour and dL/d features of every row, summed over the passes
     /// that render it.
@@ -115,12 +116,14 @@ impl<R: Real> Evals<R> {
         field.forward_density(params, &mut self.ws, &self.pos, &mut self.sigma);
         self.keep.clear();
         self.kdir.clear();
+        self.kray.clear();
         for i in 0..self.rows() {
             let x = if train { self.sigma[i] + self.noise[i] } else { self.sigma[i] };
             if dense || x > R::zero() {
                 self.kidx[i] = self.keep.len() as u32;
                 self.keep.push(i as u32);
                 self.kdir.push(self.dir[i]);
+                self.kray.push((i / self.per_ray) as u32);
             } else {
                 self.kidx[i] = u32::MAX;
             }
@@ -130,7 +133,7 @@ impl<R: Real> Evals<R> {
         if self.keep.is_empty() {
             return;
         }
-        field.forward_colour(params, &mut self.ws, Some(&self.keep), &self.kdir, &mut self.krgb);
+        field.forward_colour(params, &mut self.ws, Some(&self.keep), Some(&self.kray), &self.kdir, &mut self.krgb);
         for (&k, c) in self.keep.iter().zip(&self.krgb) {
             self.rgb[k as usize] = *c;
         }

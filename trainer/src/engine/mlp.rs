@@ -164,28 +164,15 @@ impl Dense {
             (&mut grads[self.w..self.w + self.n_in * self.n_out], self.n_out as isize, 1),
         );
         if let Some((dx, lddx, beta)) = dx {
-            self.input_grad(params, p, dy, ldy, (dx, lddx, beta), self.n_in);
+            self.input_grad_cols(params, p, dy, ldy, (dx, lddx, beta), 0..self.n_in);
         }
     }
 
-    /// dx = dz W^T (p x n_out)(n_out x n_in) for the first `cols` input columns only (the
-    /// others of `dx` are left untouched), written (`beta` = 0) or added (`beta` = 1); `dz`
-    /// (p x n_out, stride ldz) as [`backward`](Self::backward) leaves it. An input block nobody
-    /// differentiates, such as a positional encoding, then costs no multiply-adds.
-    pub fn input_grad<R: Real>(
-        &self,
-        params: &[R],
-        p: usize,
-        dz: &[R],
-        ldz: usize,
-        dx: (&mut [R], usize, R),
-        cols: usize,
-    ) {
-        self.input_grad_cols(params, p, dz, ldz, dx, 0..cols);
-    }
-
-    /// dx = dz W[cols]^T for the input columns `cols` (`dx` holds just those, column 0 being
-    /// `cols.start`), written (`beta` = 0) or added (`beta` = 1).
+    /// dx = dz W[cols]^T (p x n_out)(n_out x |cols|) for the input columns `cols` only (`dx`
+    /// holds just those, its column 0 being `cols.start`), written (`beta` = 0) or added
+    /// (`beta` = 1); `dz` (p x n_out, stride ldz) as [`backward`](Self::backward) leaves it. An
+    /// input block nobody differentiates, such as a positional encoding, then costs no
+    /// multiply-adds.
     pub fn input_grad_cols<R: Real>(
         &self,
         params: &[R],
@@ -195,7 +182,7 @@ impl Dense {
         dx: (&mut [R], usize, R),
         cols: std::ops::Range<usize>,
     ) {
-        assert!(cols.end <= self.n_in, "Dense::input_grad: columns {cols:?} of {}", self.n_in);
+        assert!(cols.end <= self.n_in, "Dense::input_grad_cols: columns {cols:?} of {}", self.n_in);
         let (dx, lddx, beta) = dx;
         let w = &params[self.w + cols.start * self.n_out..self.w + cols.end * self.n_out];
         R::gemm(
@@ -381,7 +368,7 @@ pub fn backward_stack<R: Real>(
         let target: &mut Vec<R> = if i == 0 { g_x } else { g_tmp };
         if i == 0 && x_cols < l.n_in {
             l.backward(params, grads, p, input, ld, &h[i], g_out, l.n_out, None);
-            l.input_grad(params, p, g_out, l.n_out, (&mut target[..], l.n_in, R::zero()), x_cols);
+            l.input_grad_cols(params, p, g_out, l.n_out, (&mut target[..], l.n_in, R::zero()), 0..x_cols);
         } else {
             l.backward(params, grads, p, input, ld, &h[i], g_out, l.n_out, Some((&mut target[..], l.n_in, R::zero())));
         }

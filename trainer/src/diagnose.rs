@@ -46,6 +46,9 @@ pub struct ScoredPair {
     /// Whether the pixel is saturated (a channel at 1) in that sharp view: the scene's light
     /// there may exceed what a colour output in [0, 1] represents.
     pub saturated: Option<bool>,
+    /// Whether a test view (one training never saw) is involved: for windows between sharp
+    /// frames (`None` for event pairs).
+    pub test_view: Option<bool>,
 }
 
 /// The scores of a set of pairs.
@@ -55,24 +58,26 @@ pub struct PairStats {
     pub n: usize,
     /// `1 - sum (pred - target)^2 / sum target^2` (NaN without pairs).
     pub r2: f64,
-    /// Share of pairs whose prediction has the target's sign (NaN without pairs).
+    /// Share of pairs with a change (a non-zero target) whose prediction has its sign (NaN
+    /// without pairs).
     pub sign: f64,
 }
 
 impl PairStats {
     /// The scores of `pairs`.
     pub fn of<'a>(pairs: impl IntoIterator<Item = &'a ScoredPair>) -> PairStats {
-        let (mut n, mut err, mut energy, mut agree) = (0usize, 0.0f64, 0.0f64, 0usize);
+        let (mut n, mut err, mut energy, mut signed, mut agree) = (0usize, 0.0f64, 0.0f64, 0usize, 0usize);
         for p in pairs {
             n += 1;
             err += (p.predicted - p.target).powi(2);
             energy += p.target * p.target;
+            signed += usize::from(p.target != 0.0);
             agree += usize::from(p.predicted * p.target > 0.0);
         }
         if n == 0 || energy <= 0.0 {
             return PairStats { n, r2: f64::NAN, sign: f64::NAN };
         }
-        PairStats { n, r2: 1.0 - err / energy, sign: agree as f64 / n as f64 }
+        PairStats { n, r2: 1.0 - err / energy, sign: agree as f64 / signed as f64 }
     }
 }
 
@@ -89,6 +94,8 @@ pub struct Report {
     pub by_edge: Vec<(String, PairStats)>,
     /// By saturation of the pixel in the nearest sharp view (empty without sharp views).
     pub by_saturation: Vec<(String, PairStats)>,
+    /// Windows by whether a test view is involved (empty for event pairs).
+    pub by_view: Vec<(String, PairStats)>,
 }
 
 /// Bins of the time gap (us): upper bounds, the last open.
@@ -96,7 +103,7 @@ const GAP_BINS_US: [(f64, &str); 4] =
     [(1e3, "< 1 ms"), (4e3, "1-4 ms"), (16e3, "4-16 ms"), (f64::INFINITY, ">= 16 ms")];
 /// Bins of the luma: upper bounds.
 const LUMA_BINS: [(f64, &str); 4] =
-    [(0.02, "< 0.02 (dark)"), (0.2, "0.02-0.2"), (1.0, "0.2-1"), (f64::INFINITY, ">= 1 (HDR outputs only)")];
+    [(0.02, "< 0.02 (dark)"), (0.2, "0.02-0.2"), (1.0, "0.2-1"), (f64::INFINITY, ">= 1")];
 /// Bins of the distance to an edge (pixels): upper bounds.
 const EDGE_BINS_PX: [(f64, &str); 3] =
     [(1.5, "on an edge (<= 1 px)"), (4.5, "near (2-4 px)"), (f64::INFINITY, "away (> 4 px)")];
@@ -132,12 +139,19 @@ pub fn summarise(pairs: &[ScoredPair]) -> Report {
     } else {
         Vec::new()
     };
+    let by_view = if pairs.iter().any(|p| p.test_view.is_some()) {
+        let bins = [(0.5, "training views"), (f64::INFINITY, "a test view")];
+        binned(pairs, &bins, |p| p.test_view.map(f64::from))
+    } else {
+        Vec::new()
+    };
     Report {
         overall: PairStats::of(pairs),
         by_gap: binned(pairs, &GAP_BINS_US, |p| Some(p.gap_us)),
         by_luma: binned(pairs, &LUMA_BINS, |p| Some(p.luma)),
         by_edge,
         by_saturation,
+        by_view,
     }
 }
 
@@ -148,17 +162,23 @@ pub fn draw_pairs(events: &Events, contains: impl Fn(f64) -> bool, n: usize, see
         .filter_map(|j| events.successor(j).map(|k| (j, k)))
         .filter(|&(j, k)| contains(events.t_us[j]) && contains(events.t_us[k]))
         .collect();
-    if all.len() > n {
+    sample_in_place(&mut all, n, seed);
+    all
+}
+
+/// Keeps a uniform sample of `n` of `items` (all of them when there are no more), drawn without
+/// replacement with `seed`, in their original order (items must be sorted).
+fn sample_in_place<T: Ord>(items: &mut Vec<T>, n: usize, seed: u64) {
+    if items.len() > n {
         // a partial Fisher-Yates shuffle: the first n are a uniform sample
         let mut rng = Rng::new(seed, 0x6469_6167);
         for i in 0..n {
-            let r = i + rng.below((all.len() - i) as u64) as usize;
-            all.swap(i, r);
+            let r = i + rng.below((items.len() - i) as u64) as usize;
+            items.swap(i, r);
         }
-        all.truncate(n);
-        all.sort_unstable();
+        items.truncate(n);
+        items.sort_unstable();
     }
-    all
 }
 
 /// Per pixel, the distance (pixels, 8-connected chamfer) to the nearest pixel whose luma
@@ -250,10 +270,10 @@ impl EventReading {
 
 /// Score `pairs` of `events` given each pair's two linear lumas `lumas` (at the first event's
 /// time, at the second's); the edge distance comes from the sharp image nearest in time among
-/// `sharp` (mid-time in us, image of `width` pixels a row).
+/// `sharp` (mid-time in us, image of `width` pixels a row, whether a test view's).
 pub fn score_pairs(
     events: &Events,
-    sharp: &[(f64, &RgbImage)],
+    sharp: &[(f64, &RgbImage, bool)],
     width: u32,
     pairs: &[(usize, usize)],
     reading: &EventReading,
@@ -286,45 +306,100 @@ pub fn score_pairs(
                 luma: lj.max(lk),
                 edge_px,
                 saturated,
+                test_view: None,
             }
         })
         .collect()
 }
 
-/// The linear lumas a trained field (fine pass, through its eCRF when it has one) gives each
-/// pair's pixel at its two times: rays through the pixel centre at the trajectory's poses, as
-/// the event loss casts them. Pairs are rendered in parallel on the current rayon pool; the
-/// result does not depend on it.
-pub fn field_lumas(
-    data: &Dataset,
-    model: &Model,
-    ecrf: Option<&Ecrf>,
-    params: &[f32],
-    cfg: &TrainConfig,
-    pairs: &[(usize, usize)],
-    luma: [f64; 3],
-) -> Vec<[f64; 2]> {
-    let ev = &data.events;
-    let per_call = (cfg.chunk_rays * 4).max(2) / 2;
+/// A pixel read at two times: the rays through `(x, y)` (pixel units, continuous) at the
+/// trajectory's poses at `t_us`, colours read through the eCRF with `polarity`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Probe {
+    /// Column (pixel units; `i + 0.5` is the centre of column `i`).
+    pub x: f64,
+    /// Row (pixel units).
+    pub y: f64,
+    /// The two times (us), inside the trajectory.
+    pub t_us: [f64; 2],
+    /// The polarity the eCRF reads both colours with (0: neither).
+    pub polarity: i8,
+}
+
+/// The probes of event pairs: the first event's pixel centre at the two events' times, read
+/// with the successor's polarity (as the event loss reads a pair).
+pub fn pair_probes(events: &Events, pairs: &[(usize, usize)]) -> Vec<Probe> {
     pairs
+        .iter()
+        .map(|&(j, k)| Probe {
+            x: events.x[j] as f64 + 0.5,
+            y: events.y[j] as f64 + 0.5,
+            t_us: [events.t_us[j], events.t_us[k]],
+            polarity: events.polarity[k],
+        })
+        .collect()
+}
+
+/// A trained field and how to read it.
+#[derive(Clone, Copy)]
+pub struct FieldReader<'a> {
+    /// The model.
+    pub model: &'a Model,
+    /// Its parameters.
+    pub params: &'a [f32],
+    /// The run's configuration (ray chunk size).
+    pub cfg: &'a TrainConfig,
+    /// The eCRF the colours go through (`None`: the linear colour).
+    pub ecrf: Option<&'a Ecrf>,
+    /// Rays per side of a pixel: 1 reads the pixel-centre ray (as the event loss casts it), n > 1
+    /// the mean linear colour of n x n rays at the centres of a grid over the pixel (its area, as
+    /// a sensor integrates it).
+    pub supersample: usize,
+    /// Luma weights of the linear colour.
+    pub luma: [f64; 3],
+}
+
+/// The linear lumas a trained field (fine pass, read as `field` says) gives each probe at its
+/// two times. Probes are rendered in parallel on the current rayon pool; the result does not
+/// depend on it.
+pub fn field_lumas(data: &Dataset, field: &FieldReader, probes: &[Probe]) -> Vec<[f64; 2]> {
+    let FieldReader { model, params, cfg, ecrf, supersample, luma } = *field;
+    let n = supersample.max(1);
+    let per_call = ((cfg.chunk_rays * 4).max(2) / (2 * n * n)).max(1);
+    probes
         .par_chunks(per_call)
         .map_init(Renderer::default, |renderer, chunk| {
-            let mut rays = Vec::with_capacity(2 * chunk.len());
+            let mut rays = Vec::with_capacity(2 * n * n * chunk.len());
             let mut pol = Vec::with_capacity(2 * chunk.len());
-            for &(j, k) in chunk {
-                let (x, y) = (ev.x[j] as f64 + 0.5, ev.y[j] as f64 + 0.5);
-                for t in [ev.t_us[j], ev.t_us[k]] {
-                    // draw_pairs keeps pairs inside the trajectory
-                    let pose = data.trajectory.pose_at(t).expect("pair inside the trajectory");
-                    rays.push(prepare(data, &data.intrinsics.ray_through(&pose, x, y)));
+            for p in chunk {
+                for t in p.t_us {
+                    // callers keep probes inside the trajectory
+                    let pose = data.trajectory.pose_at(t).expect("probe inside the trajectory");
+                    for k in 0..n * n {
+                        let (du, dv) =
+                            (((k % n) as f64 + 0.5) / n as f64 - 0.5, ((k / n) as f64 + 0.5) / n as f64 - 0.5);
+                        rays.push(prepare(data, &data.intrinsics.ray_through(&pose, p.x + du, p.y + dv)));
+                    }
                 }
-                // the loss reads both of a pair's colours with the successor's polarity
-                pol.extend([ev.polarity[k], ev.polarity[k]]);
+                pol.extend([p.polarity, p.polarity]);
             }
             let (o, d, vd) = unzip(&rays);
             renderer.forward(model, params, &RayChunk { origins: &o, dirs: &d, viewdirs: &vd }, None);
-            let cols = renderer.fine();
-            let mut y = [vec![0.0f32; rays.len()], vec![0.0f32; rays.len()], vec![0.0f32; rays.len()]];
+            // the pixel's light: the mean linear colour of its rays
+            let cols: Vec<[f32; 3]> = renderer
+                .fine()
+                .chunks_exact(n * n)
+                .map(|g| {
+                    let mut m = [0.0f32; 3];
+                    for col in g {
+                        for c in 0..3 {
+                            m[c] += col[c] / (n * n) as f32;
+                        }
+                    }
+                    m
+                })
+                .collect();
+            let mut y = [vec![0.0f32; cols.len()], vec![0.0f32; cols.len()], vec![0.0f32; cols.len()]];
             for (c, yc) in y.iter_mut().enumerate() {
                 let x: Vec<f32> = cols.iter().map(|col| col[c]).collect();
                 match ecrf {
@@ -339,9 +414,208 @@ pub fn field_lumas(
         .collect()
 }
 
-/// The sharp images of `data`'s views with their mid-times (us), for [`score_pairs`].
-pub fn sharp_views(data: &Dataset) -> Vec<(f64, &RgbImage)> {
-    data.views.iter().filter_map(|v| v.sharp.as_ref().map(|s| (v.t_mid_us, s))).collect()
+/// The sharp images of `data`'s views with their mid-times (us) and whether each is a test
+/// view, for [`score_pairs`] and [`SharpFrames::new`].
+pub fn sharp_views(data: &Dataset) -> Vec<(f64, &RgbImage, bool)> {
+    data.views
+        .iter()
+        .enumerate()
+        .filter_map(|(i, v)| v.sharp.as_ref().map(|s| (v.t_mid_us, s, data.split.test.contains(&i))))
+        .collect()
+}
+
+/// The sharp frames of the windows report: times (us, increasing) and the images, linear.
+///
+/// An event camera's events between two times sum, per pixel, to the change of its log
+/// brightness up to one threshold at each end: `sum p C = log L(t_b) - log L(t_a) + e` with
+/// `|e| < C` for an ideal sensor. With sharp frames at `t_a` and `t_b` that is a check of the
+/// events against ground truth (the oracle), and the same window read from a field checks the
+/// field on the scale the frames supervise.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SharpFrames {
+    /// Frame times (us), strictly increasing.
+    pub t_us: Vec<f64>,
+    /// Linear lumas, `width * height` per frame.
+    pub luma: Vec<Vec<f64>>,
+    /// Whether a pixel has a channel at 1 (display-referred): its light may be above what the
+    /// frame records.
+    pub saturated: Vec<Vec<bool>>,
+    /// Distance to the nearest intensity edge (pixels), per frame ([`edge_distance`]).
+    pub edge_px: Vec<Vec<f32>>,
+    /// Whether a frame is a test view's.
+    pub test: Vec<bool>,
+    /// Image width (pixels).
+    pub width: u32,
+    /// Image height (pixels).
+    pub height: u32,
+}
+
+impl SharpFrames {
+    /// Linearises display-referred `frames` (time in us, image, whether a test view's; any
+    /// order) through the response exponent `gamma` (`linear = display^gamma`) and takes their
+    /// luma with `luma`; frames at times `contains` refuses are left out.
+    pub fn new(
+        frames: &[(f64, &RgbImage, bool)],
+        gamma: f64,
+        luma: [f64; 3],
+        contains: impl Fn(f64) -> bool,
+    ) -> SharpFrames {
+        let mut kept: Vec<&(f64, &RgbImage, bool)> = frames.iter().filter(|f| contains(f.0)).collect();
+        kept.sort_by(|a, b| a.0.total_cmp(&b.0));
+        kept.dedup_by(|a, b| a.0 == b.0);
+        let (width, height) = kept.first().map_or((0, 0), |f| (f.1.width, f.1.height));
+        let lin = |v: f32| (v.max(0.0) as f64).powf(gamma);
+        SharpFrames {
+            t_us: kept.iter().map(|f| f.0).collect(),
+            luma: kept
+                .iter()
+                .map(|f| f.1.data.chunks_exact(3).map(|c| (0..3).map(|k| luma[k] * lin(c[k])).sum()).collect())
+                .collect(),
+            saturated: kept
+                .iter()
+                .map(|f| f.1.data.chunks_exact(3).map(|c| c.iter().any(|&v| v >= 1.0)).collect())
+                .collect(),
+            edge_px: kept.iter().map(|f| edge_distance(f.1)).collect(),
+            test: kept.iter().map(|f| f.2).collect(),
+            width,
+            height,
+        }
+    }
+
+    /// Windows between consecutive frames.
+    pub fn windows(&self) -> usize {
+        self.t_us.len().saturating_sub(1)
+    }
+
+    /// Pixels per frame.
+    pub fn pixels(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+}
+
+/// A drawn window pixel: window `w` (from frame `w` to frame `w + 1`), pixel index `p`.
+pub type WindowPixel = (usize, usize);
+
+/// Up to `n` window pixels of `frames`, drawn without replacement with `seed`; in order.
+pub fn draw_window_pixels(frames: &SharpFrames, n: usize, seed: u64) -> Vec<WindowPixel> {
+    let pixels = frames.pixels();
+    let mut all: Vec<WindowPixel> = (0..frames.windows()).flat_map(|w| (0..pixels).map(move |p| (w, p))).collect();
+    sample_in_place(&mut all, n, seed);
+    all
+}
+
+/// Per drawn window pixel, the events' summed polarity times threshold inside the window (the
+/// first frame's time excluded, the second's included) and how many events that is.
+pub fn window_targets(
+    events: &Events,
+    frames: &SharpFrames,
+    drawn: &[WindowPixel],
+    reading: &EventReading,
+) -> Vec<(f64, u32)> {
+    let pixels = frames.pixels();
+    let mut slot = std::collections::HashMap::with_capacity(drawn.len());
+    for (i, &(w, p)) in drawn.iter().enumerate() {
+        slot.insert(w * pixels + p, i);
+    }
+    let mut out = vec![(0.0f64, 0u32); drawn.len()];
+    let (w, h) = (frames.width as i64, frames.height as i64);
+    for j in 0..events.len() {
+        let t = events.t_us[j];
+        // windows are (t_w, t_w+1]: the first frame time at or after t closes the event's window
+        let end = frames.t_us.partition_point(|&f| f < t);
+        if end == 0 || end >= frames.t_us.len() {
+            continue;
+        }
+        let (x, y) = (events.x[j].round() as i64, events.y[j].round() as i64);
+        if x < 0 || y < 0 || x >= w || y >= h {
+            continue;
+        }
+        if let Some(&i) = slot.get(&((end - 1) * pixels + (y * w + x) as usize)) {
+            let p = events.polarity[j];
+            out[i].0 += p as f64 * if p > 0 { reading.threshold[0] } else { reading.threshold[1] };
+            out[i].1 += 1;
+        }
+    }
+    out
+}
+
+/// The probes of drawn window pixels: the pixel centre at the window's two frame times, read
+/// with the sign of the window's target (0 when its events cancel or it has none).
+pub fn window_probes(frames: &SharpFrames, drawn: &[WindowPixel], targets: &[(f64, u32)]) -> Vec<Probe> {
+    let w = frames.width as usize;
+    drawn
+        .iter()
+        .zip(targets)
+        .map(|(&(win, p), &(target, _))| Probe {
+            x: (p % w) as f64 + 0.5,
+            y: (p / w) as f64 + 0.5,
+            t_us: [frames.t_us[win], frames.t_us[win + 1]],
+            polarity: if target > 0.0 {
+                1
+            } else if target < 0.0 {
+                -1
+            } else {
+                0
+            },
+        })
+        .collect()
+}
+
+/// The frames' own lumas at each drawn window pixel's two times: the oracle's prediction.
+pub fn frame_lumas(frames: &SharpFrames, drawn: &[WindowPixel]) -> Vec<[f64; 2]> {
+    drawn.iter().map(|&(w, p)| [frames.luma[w][p], frames.luma[w + 1][p]]).collect()
+}
+
+/// Score window pixels given a prediction's two lumas each. Every predictor is binned by the
+/// frames (luma: the larger of the two frames'; edge distance and saturation: either frame),
+/// so the oracle's rows and a field's cover the same pixels.
+pub fn score_windows(
+    frames: &SharpFrames,
+    drawn: &[WindowPixel],
+    targets: &[(f64, u32)],
+    reading: &EventReading,
+    lumas: &[[f64; 2]],
+) -> Vec<ScoredPair> {
+    drawn
+        .iter()
+        .zip(targets)
+        .zip(lumas)
+        .map(|((&(w, p), &(target, _)), &[la, lb])| ScoredPair {
+            predicted: (lb + reading.log_eps).ln() - (la + reading.log_eps).ln(),
+            target,
+            gap_us: frames.t_us[w + 1] - frames.t_us[w],
+            luma: frames.luma[w][p].max(frames.luma[w + 1][p]),
+            edge_px: Some(frames.edge_px[w][p].min(frames.edge_px[w + 1][p]) as f64),
+            saturated: Some(frames.saturated[w][p] || frames.saturated[w + 1][p]),
+            test_view: Some(frames.test[w] || frames.test[w + 1]),
+        })
+        .collect()
+}
+
+/// The windows report as text: the oracle's and the field's r2 and sign agreement side by
+/// side, overall and by the frames' luma, edge distance and saturation.
+pub fn format_windows(title: &str, oracle: &Report, field: &Report) -> String {
+    let mut out = format!(
+        "{title}\n{:<24} {:>8} {:>8} {:>8} {:>8} {:>8}\n",
+        "window pixels", "n", "oracle", "sign", "field", "sign"
+    );
+    let row = |label: &str, o: &PairStats, f: &PairStats| {
+        format!("{label:<24} {:>8} {:>8.3} {:>8.3} {:>8.3} {:>8.3}\n", o.n, o.r2, o.sign, f.r2, f.sign)
+    };
+    out += &row("all", &oracle.overall, &field.overall);
+    let breakdowns = [
+        ("luma in the frames (linear)", &oracle.by_luma, &field.by_luma),
+        ("distance to an edge in the frames", &oracle.by_edge, &field.by_edge),
+        ("the pixel in the frames", &oracle.by_saturation, &field.by_saturation),
+        ("the window's views", &oracle.by_view, &field.by_view),
+    ];
+    for (name, o, f) in breakdowns {
+        out += &format!("by {name}\n");
+        for ((label, so), (_, sf)) in o.iter().zip(f) {
+            out += &row(&format!("  {label}"), so, sf);
+        }
+    }
+    out
 }
 
 /// The report as text: one line per row, r2 and sign agreement per bin.
@@ -372,7 +646,7 @@ mod tests {
     use super::*;
 
     fn pair(predicted: f64, target: f64, gap_us: f64, luma: f64) -> ScoredPair {
-        ScoredPair { predicted, target, gap_us, luma, edge_px: None, saturated: None }
+        ScoredPair { predicted, target, gap_us, luma, edge_px: None, saturated: None, test_view: None }
     }
 
     #[test]
@@ -487,5 +761,99 @@ mod tests {
             pairs.iter().map(|&(j, k)| [luma(events.t_us[j] + 3e3), luma(events.t_us[k] + 3e3)]).collect();
         let r = summarise(&score_pairs(&events, &[], 1, &pairs, &reading, &late));
         assert!(r.overall.r2 < 0.5, "{:?}", r.overall);
+    }
+
+    /// Ideal-sensor events of `pixels` pixels in a row whose log luma is `log_l(pixel, t)`,
+    /// stamped at the microsecond after each crossing of threshold `c`, in time order.
+    fn ideal_events(pixels: usize, c: f64, t_end_us: f64, log_l: impl Fn(usize, f64) -> f64) -> Events {
+        let mut ev: Vec<(f64, usize, i8)> = Vec::new();
+        for x in 0..pixels {
+            let mut reference = log_l(x, 0.0);
+            let mut t = 0.0;
+            while t < t_end_us {
+                t += 1.0;
+                let v = log_l(x, t);
+                while (v - reference).abs() >= c {
+                    let p: i8 = if v > reference { 1 } else { -1 };
+                    reference += p as f64 * c;
+                    ev.push((t, x, p));
+                }
+            }
+        }
+        ev.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let x: Vec<f32> = ev.iter().map(|e| e.1 as f32).collect();
+        let y = vec![0.0; ev.len()];
+        let successors = crate::data::events::successors(&x, &y, (pixels as u32, 1), false);
+        Events {
+            t_us: ev.iter().map(|e| e.0).collect(),
+            polarity: ev.iter().map(|e| e.2).collect(),
+            x,
+            y,
+            successors,
+            ..Events::default()
+        }
+    }
+
+    #[test]
+    fn sharp_frames_of_an_analytic_scene_explain_its_windows_and_wrong_frames_do_not() {
+        let (pixels, c, gamma) = (6usize, 0.05, 2.2);
+        // log luma per pixel: a moving bump over a dark ramp, all below 1
+        let log_l = |x: usize, t: f64| -2.5 + 0.2 * x as f64 + 1.5 * (-((x as f64 - t / 40e3) / 1.5).powi(2)).exp();
+        let events = ideal_events(pixels, c, 300e3, log_l);
+        let frame = |t: f64| RgbImage {
+            width: pixels as u32,
+            height: 1,
+            data: (0..pixels).flat_map(|x| [log_l(x, t).exp().powf(1.0 / gamma) as f32; 3]).collect(),
+        };
+        let times: Vec<f64> = (0..10).map(|k| k as f64 * 30e3).collect();
+        let images: Vec<RgbImage> = times.iter().map(|&t| frame(t)).collect();
+        let list: Vec<(f64, &RgbImage, bool)> =
+            times.iter().zip(&images).map(|(&t, i)| (t, i, t == 0.0)).rev().collect();
+        let luma = [0.299, 0.587, 0.114];
+        // frames come in any order; a time outside the trajectory drops its frame
+        let frames = SharpFrames::new(&list, gamma, luma, |t| t < 250e3);
+        assert_eq!(frames.t_us, times[..9]);
+        assert_eq!(frames.windows(), 8);
+        let drawn = draw_window_pixels(&frames, 1000, 1);
+        assert_eq!(drawn.len(), 8 * pixels);
+        let reading = EventReading { threshold: [c, c], log_eps: 0.0, luma };
+        let targets = window_targets(&events, &frames, &drawn, &reading);
+        assert!(targets.iter().filter(|t| t.1 > 0).count() > 30, "{targets:?}");
+        let score = |l: &[[f64; 2]]| summarise(&score_windows(&frames, &drawn, &targets, &reading, l)).overall;
+        // the events sum to the change up to one threshold at each end (f32 frames)
+        let oracle = score(&frame_lumas(&frames, &drawn));
+        assert!(oracle.r2 > 0.98 && oracle.sign > 0.95, "{oracle:?}");
+        let still: Vec<[f64; 2]> = drawn.iter().map(|&(w, p)| [frames.luma[w][p]; 2]).collect();
+        assert!(score(&still).r2.abs() < 1e-9);
+        let late: Vec<[f64; 2]> = drawn
+            .iter()
+            .map(|&(w, p)| [log_l(p, times[w] + 15e3).exp(), log_l(p, times[w + 1] + 15e3).exp()])
+            .collect();
+        let late = score(&late);
+        assert!(late.r2 < oracle.r2 - 0.1, "{late:?} vs {oracle:?}");
+    }
+
+    #[test]
+    fn window_targets_sum_the_events_after_the_first_frame_up_to_the_second() {
+        let events = Events {
+            x: vec![0.0, 1.0, 1.0, 1.0, 1.0, 9.0],
+            y: vec![0.0; 6],
+            t_us: vec![5.0, 10.0, 10.5, 20.0, 25.0, 15.0],
+            polarity: vec![1, 1, -1, 1, 1, 1],
+            ..Events::default()
+        };
+        let img = RgbImage { width: 2, height: 1, data: vec![0.5; 6] };
+        let list = [(10.0, &img, false), (20.0, &img, false), (30.0, &img, true)];
+        let frames = SharpFrames::new(&list, 1.0, [1.0, 0.0, 0.0], |_| true);
+        let drawn = draw_window_pixels(&frames, 10, 1);
+        assert_eq!(drawn, [(0, 0), (0, 1), (1, 0), (1, 1)]);
+        let reading = EventReading { threshold: [0.2, 0.3], log_eps: 0.0, luma: [1.0, 0.0, 0.0] };
+        let t = window_targets(&events, &frames, &drawn, &reading);
+        // pixel 1: (10, 20] holds -0.3 and +0.2; (20, 30] holds +0.2; the event at 10 and the
+        // one before the first frame and off the image count nowhere
+        assert_eq!(t, [(0.0, 0), (-0.3 + 0.2, 2), (0.0, 0), (0.2, 1)]);
+        let probes = window_probes(&frames, &drawn, &t);
+        assert_eq!(probes.iter().map(|p| p.polarity).collect::<Vec<_>>(), [0, -1, 0, 1]);
+        assert_eq!((probes[3].x, probes[3].y, probes[3].t_us), (1.5, 0.5, [20.0, 30.0]));
     }
 }

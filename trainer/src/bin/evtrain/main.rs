@@ -115,13 +115,24 @@ enum Cmd {
 enum Diagnose {
     /// How well the run's field explains its dataset's events: r2 of the predicted log-luma
     /// change of event pairs against p*C and sign agreement, overall and by time gap, luma and
-    /// distance to intensity edges.
+    /// distance to intensity edges; then, with the dataset's sharp frames, the events summed
+    /// between consecutive frames against the frames (the oracle) and against the field.
     Events {
         /// Run folder.
         run: PathBuf,
         /// Event pairs drawn (an event and the next at its pixel).
         #[arg(long, default_value_t = 20000)]
         pairs: usize,
+        /// Window pixels drawn (a pixel between two consecutive sharp frames; 0: no windows).
+        #[arg(long, default_value_t = 20000)]
+        window_pixels: usize,
+        /// Rays per side of a pixel, averaged in linear light (the pixel's area); 1: the
+        /// pixel-centre ray the event loss casts.
+        #[arg(long, default_value_t = 1)]
+        supersample: usize,
+        /// Read the field's linear colour, not through the run's eCRF.
+        #[arg(long)]
+        no_ecrf: bool,
         /// Seed of the draw.
         #[arg(long, default_value_t = 1)]
         seed: u64,
@@ -158,7 +169,10 @@ fn main() -> Result<()> {
             print!("{}", toml::to_string(&(p.build)(scale))?);
             Ok(())
         }
-        Cmd::Diagnose(Diagnose::Events { run, pairs, seed, threads }) => diagnose_events(&run, pairs, seed, threads),
+        Cmd::Diagnose(Diagnose::Events { run, pairs, window_pixels, supersample, no_ecrf, seed, threads }) => {
+            let read = FieldReading { supersample, no_ecrf };
+            diagnose_events(&run, pairs, window_pixels, read, seed, threads)
+        }
         Cmd::Bench { reps, run: None, .. } => bench(reps),
         Cmd::Bench { reps, run: Some(run), presets, threads, set, dense_set } => {
             bench_families(&run, &presets, BenchSettings { set, dense_set, reps, threads })
@@ -370,10 +384,26 @@ fn open_run(dir: &Path) -> Result<(RunPaths, RunRecord, Dataset)> {
     Ok((run, record, dataset))
 }
 
-fn diagnose_events(dir: &Path, pairs: usize, seed: u64, threads: usize) -> Result<()> {
+/// How `diagnose events` reads the field.
+struct FieldReading {
+    supersample: usize,
+    no_ecrf: bool,
+}
+
+fn diagnose_events(
+    dir: &Path,
+    pairs: usize,
+    window_pixels: usize,
+    read: FieldReading,
+    seed: u64,
+    threads: usize,
+) -> Result<()> {
     use trainer::diagnose;
     if pairs == 0 {
         bail!("--pairs 0: draw at least one pair");
+    }
+    if read.supersample == 0 {
+        bail!("--supersample 0: at least 1 ray per pixel side");
     }
     let (run, record, dataset) = open_run(dir)?;
     if dataset.events.is_empty() {
@@ -390,21 +420,21 @@ fn diagnose_events(dir: &Path, pairs: usize, seed: u64, threads: usize) -> Resul
         .num_threads(threads)
         .build()
         .with_context(|| format!("--threads {threads}: cannot start the workers"))?;
-    let lumas = pool.install(|| {
-        diagnose::field_lumas(
-            &dataset,
-            &method.model,
-            method.ecrf.as_ref(),
-            &ck.params,
-            &record.config,
-            &drawn,
-            reading.luma,
-        )
-    });
+    let ecrf = method.ecrf.as_ref().filter(|_| !read.no_ecrf);
+    let field = diagnose::FieldReader {
+        model: &method.model,
+        params: &ck.params,
+        cfg: &record.config,
+        ecrf,
+        supersample: read.supersample,
+        luma: reading.luma,
+    };
+    let lumas =
+        pool.install(|| diagnose::field_lumas(&dataset, &field, &diagnose::pair_probes(&dataset.events, &drawn)));
     let sharp = diagnose::sharp_views(&dataset);
     let scored = diagnose::score_pairs(&dataset.events, &sharp, dataset.intrinsics.width, &drawn, &reading, &lumas);
     let title = format!(
-        "{} ({}, step {}) on {}: {} event pairs of {} events, threshold {:.3}/{:.3}, log_eps {:e}",
+        "{} ({}, step {}) on {}: {} event pairs of {} events, threshold {:.3}/{:.3}, log_eps {:e}; field read {}, {}",
         record.preset,
         scale_name(record.scale),
         ck.step,
@@ -413,9 +443,47 @@ fn diagnose_events(dir: &Path, pairs: usize, seed: u64, threads: usize) -> Resul
         dataset.events.len(),
         reading.threshold[0],
         reading.threshold[1],
-        reading.log_eps as f32
+        reading.log_eps as f32,
+        match read.supersample {
+            1 => "at the pixel centre".to_string(),
+            n => format!("as the mean of {n}x{n} rays over the pixel"),
+        },
+        match (method.ecrf.is_some(), ecrf.is_some()) {
+            (true, true) => "through the eCRF",
+            (true, false) => "linear (its eCRF left out)",
+            _ => "linear (no eCRF)",
+        }
     );
     print!("{}", diagnose::format_report(&title, &diagnose::summarise(&scored)));
+    if window_pixels == 0 {
+        return Ok(());
+    }
+    let frames = diagnose::SharpFrames::new(&sharp, record.config.response_gamma, reading.luma, |t| {
+        dataset.trajectory.contains(t)
+    });
+    if frames.windows() == 0 {
+        println!("no windows: the dataset has fewer than two sharp frames inside the trajectory (images_sharp_1/)");
+        return Ok(());
+    }
+    let drawn = diagnose::draw_window_pixels(&frames, window_pixels, seed);
+    let targets = diagnose::window_targets(&dataset.events, &frames, &drawn, &reading);
+    let probes = diagnose::window_probes(&frames, &drawn, &targets);
+    let field = pool.install(|| diagnose::field_lumas(&dataset, &field, &probes));
+    let oracle = diagnose::frame_lumas(&frames, &drawn);
+    let score =
+        |lumas: &[[f64; 2]]| diagnose::summarise(&diagnose::score_windows(&frames, &drawn, &targets, &reading, lumas));
+    let gaps: Vec<f64> = frames.t_us.windows(2).map(|t| t[1] - t[0]).collect();
+    let title = format!(
+        "windows between consecutive sharp frames ({} windows of {:.1}-{:.1} ms): {} pixels drawn, {} with events; \
+         frames linearised with gamma {}",
+        frames.windows(),
+        gaps.iter().copied().fold(f64::INFINITY, f64::min) / 1e3,
+        gaps.iter().copied().fold(0.0, f64::max) / 1e3,
+        drawn.len(),
+        targets.iter().filter(|t| t.1 > 0).count(),
+        record.config.response_gamma
+    );
+    print!("{}", diagnose::format_windows(&title, &score(&oracle), &score(&field)));
     Ok(())
 }
 

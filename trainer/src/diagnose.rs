@@ -158,27 +158,32 @@ pub fn summarise(pairs: &[ScoredPair]) -> Report {
 /// Up to `n` event pairs `(j, successor of j)`, drawn without replacement with `seed` from the
 /// events with a successor whose two times lie inside the dataset's trajectory; in event order.
 pub fn draw_pairs(events: &Events, contains: impl Fn(f64) -> bool, n: usize, seed: u64) -> Vec<(usize, usize)> {
-    let mut all: Vec<(usize, usize)> = (0..events.len())
+    let all: Vec<(usize, usize)> = (0..events.len())
         .filter_map(|j| events.successor(j).map(|k| (j, k)))
         .filter(|&(j, k)| contains(events.t_us[j]) && contains(events.t_us[k]))
         .collect();
-    sample_in_place(&mut all, n, seed);
-    all
+    sample_indices(all.len(), n, seed).into_iter().map(|i| all[i]).collect()
 }
 
-/// Keeps a uniform sample of `n` of `items` (all of them when there are no more), drawn without
-/// replacement with `seed`, in their original order (items must be sorted).
-fn sample_in_place<T: Ord>(items: &mut Vec<T>, n: usize, seed: u64) {
-    if items.len() > n {
-        // a partial Fisher-Yates shuffle: the first n are a uniform sample
-        let mut rng = Rng::new(seed, 0x6469_6167);
-        for i in 0..n {
-            let r = i + rng.below((items.len() - i) as u64) as usize;
-            items.swap(i, r);
-        }
-        items.truncate(n);
-        items.sort_unstable();
+/// A uniform sample of `n` of the indices `0..total` (all of them when there are no more),
+/// drawn without replacement with `seed`, increasing. A partial Fisher-Yates shuffle whose
+/// swapped positions live in a map, so the memory is O(n) whatever `total`.
+fn sample_indices(total: usize, n: usize, seed: u64) -> Vec<usize> {
+    if total <= n {
+        return (0..total).collect();
     }
+    let mut rng = Rng::new(seed, 0x6469_6167);
+    let mut moved = std::collections::HashMap::with_capacity(2 * n);
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let r = i + rng.below((total - i) as u64) as usize;
+        let at_r = moved.get(&r).copied().unwrap_or(r);
+        let at_i = moved.get(&i).copied().unwrap_or(i);
+        moved.insert(r, at_i);
+        out.push(at_r);
+    }
+    out.sort_unstable();
+    out
 }
 
 /// Per pixel, the distance (pixels, 8-connected chamfer) to the nearest pixel whose luma
@@ -499,9 +504,7 @@ pub type WindowPixel = (usize, usize);
 /// Up to `n` window pixels of `frames`, drawn without replacement with `seed`; in order.
 pub fn draw_window_pixels(frames: &SharpFrames, n: usize, seed: u64) -> Vec<WindowPixel> {
     let pixels = frames.pixels();
-    let mut all: Vec<WindowPixel> = (0..frames.windows()).flat_map(|w| (0..pixels).map(move |p| (w, p))).collect();
-    sample_in_place(&mut all, n, seed);
-    all
+    sample_indices(frames.windows() * pixels, n, seed).into_iter().map(|i| (i / pixels, i % pixels)).collect()
 }
 
 /// Per drawn window pixel, the events' summed polarity times threshold inside the window (the
@@ -855,5 +858,25 @@ mod tests {
         let probes = window_probes(&frames, &drawn, &t);
         assert_eq!(probes.iter().map(|p| p.polarity).collect::<Vec<_>>(), [0, -1, 0, 1]);
         assert_eq!((probes[3].x, probes[3].y, probes[3].t_us), (1.5, 0.5, [20.0, 30.0]));
+    }
+
+    #[test]
+    fn sampled_indices_are_the_partial_shuffle_of_the_whole_list() {
+        // the map-based shuffle draws the same sample as shuffling the materialised list
+        for (total, n, seed) in [(10usize, 3usize, 1u64), (1000, 50, 2), (1000, 999, 3), (5, 5, 4), (5, 9, 5)] {
+            let mut all: Vec<usize> = (0..total).collect();
+            if total > n {
+                let mut rng = Rng::new(seed, 0x6469_6167);
+                for i in 0..n {
+                    let r = i + rng.below((total - i) as u64) as usize;
+                    all.swap(i, r);
+                }
+                all.truncate(n);
+                all.sort_unstable();
+            }
+            let got = sample_indices(total, n, seed);
+            assert_eq!(got, all, "{total} {n} {seed}");
+            assert!(got.windows(2).all(|w| w[0] < w[1]));
+        }
     }
 }

@@ -222,7 +222,7 @@ fn shipped_sweeps_resolve_at_both_scales() {
     let names = |s: &str| seen.iter().filter(|x| x.0 == s).map(|x| (x.1.clone(), x.2)).collect::<Vec<_>>();
     assert_eq!(names(""), names("paper"));
     let studies: Vec<String> = names("").into_iter().map(|x| x.0).collect();
-    for want in ["exposure", "threshold", "mismatch", "noise", "refractory", "speed", "views"] {
+    for want in ["exposure", "threshold", "mismatch", "noise", "refractory", "speed", "views", "windows"] {
         assert!(studies.contains(&format!("{want}.toml")), "{studies:?}");
     }
 }

@@ -314,9 +314,6 @@ fn window_scores(cfg: &TrainConfig, params: &[f32]) -> (diagnose::Report, diagno
     let reading = diagnose::EventReading::of(cfg, data);
     let views = diagnose::sharp_views(data);
     let frames = diagnose::SharpFrames::new(&views, cfg.response_gamma, reading.luma, |t| data.trajectory.contains(t));
-    let drawn = diagnose::draw_window_pixels(&frames, usize::MAX, 1);
-    let targets = diagnose::window_targets(&data.events, &frames, &drawn, &reading);
-    let probes = diagnose::window_probes(&frames, &drawn, &targets);
     let reader = diagnose::FieldReader {
         model: &method.model,
         params,
@@ -325,9 +322,8 @@ fn window_scores(cfg: &TrainConfig, params: &[f32]) -> (diagnose::Report, diagno
         supersample: 1,
         luma: reading.luma,
     };
-    let field = diagnose::field_lumas(data, &reader, &probes);
-    let score = |l: &[[f64; 2]]| diagnose::summarise(&diagnose::score_windows(&frames, &drawn, &targets, &reading, l));
-    (score(&diagnose::frame_lumas(&frames, &drawn)), score(&field))
+    let scores = diagnose::score_sharp_windows(data, &frames, &reader, &reading, usize::MAX, 1);
+    (scores.oracle, scores.field)
 }
 
 #[test]

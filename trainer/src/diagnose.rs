@@ -595,6 +595,41 @@ pub fn score_windows(
         .collect()
 }
 
+/// The oracle's and a field's scores on seeded window pixels: what `evtrain diagnose events`
+/// prints under its windows heading.
+pub struct WindowScores {
+    /// The frames' own prediction (the oracle).
+    pub oracle: Report,
+    /// The field's prediction at the same pixels and times.
+    pub field: Report,
+    /// Window pixels drawn.
+    pub drawn: usize,
+    /// Drawn window pixels with at least one event.
+    pub with_events: usize,
+}
+
+/// Draw up to `n` window pixels of `frames` with `seed`, sum their events, and score the
+/// frames' and the field's log-luma change against those sums.
+pub fn score_sharp_windows(
+    data: &Dataset,
+    frames: &SharpFrames,
+    field: &FieldReader,
+    reading: &EventReading,
+    n: usize,
+    seed: u64,
+) -> WindowScores {
+    let drawn = draw_window_pixels(frames, n, seed);
+    let targets = window_targets(&data.events, frames, &drawn, reading);
+    let predicted = field_lumas(data, field, &window_probes(frames, &drawn, &targets));
+    let score = |lumas: &[[f64; 2]]| summarise(&score_windows(frames, &drawn, &targets, reading, lumas));
+    WindowScores {
+        oracle: score(&frame_lumas(frames, &drawn)),
+        field: score(&predicted),
+        drawn: drawn.len(),
+        with_events: targets.iter().filter(|t| t.1 > 0).count(),
+    }
+}
+
 /// The windows report as text: the oracle's and the field's r2 and sign agreement side by
 /// side, overall and by the frames' luma, edge distance and saturation.
 pub fn format_windows(title: &str, oracle: &Report, field: &Report) -> String {

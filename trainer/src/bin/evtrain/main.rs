@@ -465,13 +465,8 @@ fn diagnose_events(
         println!("no windows: the dataset has fewer than two sharp frames inside the trajectory (images_sharp_1/)");
         return Ok(());
     }
-    let drawn = diagnose::draw_window_pixels(&frames, window_pixels, seed);
-    let targets = diagnose::window_targets(&dataset.events, &frames, &drawn, &reading);
-    let probes = diagnose::window_probes(&frames, &drawn, &targets);
-    let field = pool.install(|| diagnose::field_lumas(&dataset, &field, &probes));
-    let oracle = diagnose::frame_lumas(&frames, &drawn);
-    let score =
-        |lumas: &[[f64; 2]]| diagnose::summarise(&diagnose::score_windows(&frames, &drawn, &targets, &reading, lumas));
+    let scores =
+        pool.install(|| diagnose::score_sharp_windows(&dataset, &frames, &field, &reading, window_pixels, seed));
     let gaps: Vec<f64> = frames.t_us.windows(2).map(|t| t[1] - t[0]).collect();
     let title = format!(
         "windows between consecutive sharp frames ({} windows of {:.1}-{:.1} ms): {} pixels drawn, {} with events; \
@@ -479,11 +474,11 @@ fn diagnose_events(
         frames.windows(),
         gaps.iter().copied().fold(f64::INFINITY, f64::min) / 1e3,
         gaps.iter().copied().fold(0.0, f64::max) / 1e3,
-        drawn.len(),
-        targets.iter().filter(|t| t.1 > 0).count(),
+        scores.drawn,
+        scores.with_events,
         record.config.response_gamma
     );
-    print!("{}", diagnose::format_windows(&title, &score(&oracle), &score(&field)));
+    print!("{}", diagnose::format_windows(&title, &scores.oracle, &scores.field));
     Ok(())
 }
 

@@ -306,6 +306,34 @@ fn an_event_window_of_one_hop_is_the_single_event_loss_and_wider_windows_train()
     }
 }
 
+#[test]
+fn saturated_pairs_are_dropped_from_the_event_loss_and_only_those() {
+    let e_nerf = presets::preset("e-nerf").expect("the e-nerf preset");
+    let cfg = small(e_nerf, 3);
+    let with = |limit: Option<f64>, weight: f64| {
+        let mut c = cfg.clone();
+        let e = c.events.as_mut().unwrap();
+        (e.saturation, e.weight) = (limit, weight);
+        c
+    };
+    let runs = ["sat-none", "sat-high", "sat-low", "sat-weight-0"].map(run_dir);
+    let every = train(&with(None, 0.1), None, &runs[0], None);
+    // a limit no rendered luma reaches drops nothing: the same bytes
+    train(&with(Some(1e9), 0.1), None, &runs[1], None);
+    assert!(checkpoint_bytes(&runs[0]) == checkpoint_bytes(&runs[1]), "a limit of 1e9 dropped pairs");
+    // a limit every rendered luma reaches drops every pair: no event loss, and the training of a
+    // zero event weight, bit for bit
+    let none = train(&with(Some(1e-12), 0.1), None, &runs[2], None);
+    train(&with(None, 0.0), None, &runs[3], None);
+    assert!(every.iter().all(|r| r.event_loss > 0.0), "{every:?}");
+    assert!(none.iter().all(|r| r.event_loss == 0.0), "{none:?}");
+    assert!(checkpoint_bytes(&runs[2]) == checkpoint_bytes(&runs[3]), "dropped pairs still train the field");
+    assert!(checkpoint_bytes(&runs[0]) != checkpoint_bytes(&runs[2]));
+    for run in runs {
+        std::fs::remove_dir_all(&run.dir).unwrap();
+    }
+}
+
 /// Scores of the windows between the dataset's consecutive sharp frames: the frames' own
 /// (the oracle) and a field's with `params`, all window pixels.
 fn window_scores(cfg: &TrainConfig, params: &[f32]) -> (diagnose::Report, diagnose::Report) {

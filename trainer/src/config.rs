@@ -118,6 +118,11 @@ pub struct EventLossConfig {
     /// thresholds, summed; `None`: single events (one hop, the reference default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub window: Option<[u32; 2]>,
+    /// Saturated pairs: drop a pair when its rendered luma (the linear colour, before the
+    /// eCRF) reaches this value at either end, where a sigmoid colour cannot follow the
+    /// events' change; `None`: every pair counts (docs/trainer.md, "radiance above 1").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub saturation: Option<f64>,
 }
 
 /// Most events an event window ([`EventLossConfig::window`]) hops.
@@ -135,6 +140,7 @@ impl EventLossConfig {
             colour: false,
             inside_exposures: false,
             window: None,
+            saturation: None,
         }
     }
 }
@@ -253,6 +259,9 @@ impl TrainConfig {
             if let Some([on, off]) = e.threshold {
                 checks.extend([("events.threshold[0]", on, false), ("events.threshold[1]", off, false)]);
             }
+            if let Some(limit) = e.saturation {
+                checks.push(("events.saturation", limit, false));
+            }
             if let Some(eps) = e.log_eps {
                 checks.push(("events.log_eps", eps, false));
             }
@@ -352,6 +361,7 @@ mod tests {
         assert_eq!(sets(&["iterations=12"]).unwrap().iterations, 12);
         // Event windows: a hop range, refused out of order, zero or with inside_exposures.
         assert_eq!(sets(&["events.window=[2, 8]"]).unwrap().events.unwrap().window, Some([2, 8]));
+        assert_eq!(sets(&["events.saturation=0.95"]).unwrap().events.unwrap().saturation, Some(0.95));
         // The training images: EDI-deblurred, or an external program's.
         assert_eq!(sets(&["images=edi"]).unwrap().images, ImageSource::Edi);
         let c = sets(&[r#"images={deblur="mprnet {input} {output}"}"#]).unwrap();
@@ -366,6 +376,8 @@ mod tests {
             (&["events.window=[4, 2]"][..], "1 <= min <= max"),
             (&["events.window=[1, 5000]"][..], "<= 1000"),
             (&["events.window=[1, 4]", "events.inside_exposures=true"][..], "inside_exposures"),
+            (&["events.saturation=0"][..], "events.saturation = 0"),
+            (&["events.saturation=nan"][..], "events.saturation = NaN"),
             (&["batch_rays"][..], "KEY=VALUE"),
         ] {
             let err = sets(bad).unwrap_err();

@@ -898,6 +898,7 @@ pub fn step(
     let kstride = 12 * k_rays + k_rays + 1 + emb_dim;
     let luma = evc.and_then(|e| e.luma).unwrap_or(BT601).map(|x| x as f32);
     let log_eps = evc.and_then(|e| e.log_eps).unwrap_or(1e-5) as f32;
+    let saturation = evc.and_then(|e| e.saturation).map_or(f32::INFINITY, |s| s as f32);
     // A DSK pixel's gradients: K x (offset 2, origin 3, weight 1), then (PDRF) dL/d the first
     // stage's coarse blurry colour.
     let pstride = 6 * k_rays + if progressive.is_some() { 3 } else { 0 };
@@ -1059,7 +1060,7 @@ pub fn step(
                     }
                 }
             }
-            sums.event += event_losses(wk, ecrf, p, g, &groups[g0..g1], r0, luma, log_eps, ev_scale);
+            sums.event += event_losses(wk, ecrf, p, g, &groups[g0..g1], r0, luma, log_eps, saturation, ev_scale);
             let with_rays = learns_rays && any_kernel;
             if with_rays {
                 wk.d_rays.resize(n, RayGrad::zero());
@@ -1378,6 +1379,7 @@ pub fn kernel_ray_backward<R: Real>(
 /// The event loss of the event groups among `groups` (rays from `r0` on in the worker's
 /// renderer): adds dL/dC (scaled by `scale` = weight / events) to the worker's `dc`/`df` and
 /// the eCRF's gradient to `g`; returns the unweighted loss summed over its events and passes.
+/// A pair whose linear luma reaches `saturation` at either end adds nothing.
 #[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 fn event_losses(
     wk: &mut Worker,
@@ -1388,6 +1390,7 @@ fn event_losses(
     r0: usize,
     luma: [f32; 3],
     log_eps: f32,
+    saturation: f32,
     scale: f32,
 ) -> f64 {
     let evs: Vec<(usize, i8, f32, u8)> = groups
@@ -1429,6 +1432,10 @@ fn event_losses(
             } else {
                 (1.0, luma)
             };
+            let linear = |i: usize| (0..3).map(|c| lum[c] * wk.ex[c][i]).sum::<f32>();
+            if linear(2 * e) >= saturation || linear(2 * e + 1) >= saturation {
+                continue;
+            }
             let y = |i: usize| [wk.ey[0][i], wk.ey[1][i], wk.ey[2][i]];
             let t = EventTerm { luma: lum, weight, target, log_eps };
             let (loss, dj, dk) = t.loss(y(2 * e), y(2 * e + 1), scale);

@@ -295,7 +295,7 @@ fn an_event_window_of_one_hop_is_the_single_event_loss_and_wider_windows_train()
         c
     };
     let (a, b, c) = (run_dir("window-none"), run_dir("window-1"), run_dir("window-2-6"));
-    train(&cfg, None, &a, None);
+    train(&with(None), None, &a, None);
     train(&with(Some([1, 1])), None, &b, None);
     assert!(checkpoint_bytes(&a) == checkpoint_bytes(&b), "window [1, 1] differs from single events");
     let rows = train(&with(Some([2, 6])), None, &c, None);

@@ -232,26 +232,16 @@ pub fn cpu_awp() -> AwpConfig {
     AwpConfig { sample_hidden: vec![32, 32], mix_every: 2667, ..AwpConfig::reference() }
 }
 
-/// The cpu presets' event windows: each pair hops 2 to 8 events at its pixel. On factory
-/// 300x200 at 2000 iterations (`benchmark/configs/sweeps/windows.toml`, one seed) windows of
-/// [1,1] / [2,8] / [8,32] / [32,128] events gave e-nerf 22.06 / 24.53 / 24.32 / 24.09 dB and
-/// ev-deblurnerf-- 22.56 / 25.43 / 24.69 / 23.95 dB; at the full 8000 e-nerf gave 22.50
-/// (single) / 25.70 ([2,8]) / 25.95 ([8,32]) dB (nerf 21.96). Over one pair (a few ms) the
-/// change is one threshold, below what a field at this budget resolves (pair r2 at most 0.42,
-/// even for a field trained on the sharp views); summed over a window the events explain the
-/// sharp frames' change with r2 0.93 (`evtrain diagnose events`). The paper scale keeps the
-/// reference's single events.
-pub const CPU_EVENT_WINDOW: [u32; 2] = [2, 8];
-
 /// Ev-DeblurNeRF (full). Paper scale: the reference settings (kernel and eCRF from iteration
 /// 1200, 4096 events per batch, EDI 0.01 cosine-decayed to 1e-5 over 10 k steps). Cpu scale:
 /// the `nerf` cpu field and budget (8000 iterations); per iteration 512 pixels x 6 rays (K = 5
-/// warped rays and the origin ray) and 512 event windows ([`CPU_EVENT_WINDOW`]) x 2 rays (4x the rays of a `nerf` step; with
-/// 256 pixels the test PSNR on factory 300x200 was 0.2-1.0 dB lower at every 1000 steps, 26.90
-/// against 27.21 dB at 8000); kernel and eCRF from 320 (1200 x 8000 / 30000); the EDI prior at the reference's real-data weight
-/// (1.0, constant): path-traced events carry sampling noise, and at 300x200 a field trained on
-/// `evsim` data explains only a small part of the single-event loss (see the issue-7 note),
-/// while the EDI images are 6 dB closer to the sharp views than the blurry ones.
+/// warped rays and the origin ray) and 512 events x 2 rays (4x the rays of a `nerf` step;
+/// with 256 pixels the test PSNR on factory 300x200 was 0.2-1.0 dB
+/// lower at every 1000 steps, 26.90 against 27.21 dB at 8000); kernel and eCRF from 320
+/// (1200 x 8000 / 30000); the EDI prior at the reference's real-data weight (1.0, constant):
+/// path-traced events carry sampling noise, and at 300x200 a field trained on `evsim` data
+/// explains only a small part of the single-event loss (see the issue-7 note), while the EDI
+/// images are 6 dB closer to the sharp views than the blurry ones.
 pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
     let base = nerf(scale);
     let edi = EdiConfig::reference_synthetic();
@@ -279,11 +269,7 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
                 dsk: None,
                 trajectory: None,
             }),
-            events: Some(EventLossConfig {
-                batch: 512,
-                window: Some(CPU_EVENT_WINDOW),
-                ..EventLossConfig::reference()
-            }),
+            events: Some(EventLossConfig { batch: 512, ..EventLossConfig::reference() }),
             ecrf: Some(EcrfConfig { start: 320, ..EcrfConfig::reference() }),
             edi: Some(EdiConfig::reference_real()),
             ..base
@@ -370,7 +356,8 @@ pub fn bad_nerf(scale: Scale) -> TrainConfig {
 
 /// E2NeRF-style: the blurry colour is the mean of K virtual cameras at the dataset
 /// trajectory's poses inside the exposure (fixed, nothing learned; paper K = 9, cpu 5), and
-/// the event loss sees only pairs of events inside a training view's exposure.
+/// the event loss sees only pairs of consecutive events inside a training view's exposure
+/// (single events at both scales: windows may not cross an exposure's end).
 pub fn e2nerf(scale: Scale) -> TrainConfig {
     let base = ev_deblurnerf(scale);
     let k = if scale == Scale::Paper { 9 } else { 5 };

@@ -494,6 +494,23 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
     let layout = Model::new(&model_cfg).layout;
     assert_eq!(Checkpoint::load(&layout, &run.checkpoint()).unwrap().step, 4);
 
+    // A volume too big for the machine's memory is refused by name, before anything is written.
+    let big = format!("{out}-big");
+    let e = fails(&[
+        "train",
+        "--data",
+        data,
+        "--preset",
+        "nerf",
+        "--out",
+        &big,
+        "--set",
+        "model.coarse_volume.res=100000",
+        "--quiet",
+    ]);
+    assert!(e.contains("model.coarse_volume.res = 100000") && e.contains("GB of memory is available"), "{e}");
+    assert!(!Path::new(&big).exists(), "{big} was created");
+
     // The same command again refuses, leaving the run as it was.
     let before = std::fs::read(run.checkpoint()).unwrap();
     let e = fails(&args);

@@ -277,6 +277,7 @@ impl<'a> Trainer<'a> {
         }
         let method = Method::new(&cfg, data.views.len());
         let threads = if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads };
+        check_memory(&cfg, method.layout().len(), threads, available_memory()).map_err(TrainError::Config)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
@@ -500,5 +501,75 @@ impl LogFile {
 impl Drop for LogFile {
     fn drop(&mut self) {
         let _ = self.flush();
+    }
+}
+
+/// Bytes per parameter a run holds: the value, Adam's two moments, the summed gradient and one
+/// gradient buffer per worker thread, all `f32`.
+fn bytes_per_parameter(threads: usize) -> u64 {
+    4 * (4 + threads as u64)
+}
+
+/// Refuses `cfg` (for a dataset of `views` views) when its training state cannot fit in this
+/// machine's available memory; the message names the volume settings that size it. The trainer
+/// checks this itself; call it to refuse before writing anything.
+pub fn check_fits_in_memory(cfg: &TrainConfig, views: usize) -> Result<(), String> {
+    let threads = if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads };
+    check_memory(cfg, Method::new(cfg, views).layout().len(), threads, available_memory())
+}
+
+/// The memory this machine has available (`MemAvailable` of `/proc/meminfo`), when known.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Refuses a model whose training state cannot fit in `available` bytes (a mistyped volume
+/// resolution would otherwise abort the process on allocation), naming the settings that size it.
+fn check_memory(cfg: &TrainConfig, parameters: usize, threads: usize, available: Option<u64>) -> Result<(), String> {
+    let need = (parameters as u64).saturating_mul(bytes_per_parameter(threads));
+    let Some(available) = available else { return Ok(()) };
+    if need <= available {
+        return Ok(());
+    }
+    let gb = |b: u64| b as f64 / 1e9;
+    let m = &cfg.model;
+    let volumes = match &m.fine_volume {
+        Some(f) => format!(
+            "model.coarse_volume.res = {} (comps {:?}), model.fine_volume.res = {} (comps {:?})",
+            m.coarse_volume.res, m.coarse_volume.comps, f.res, f.comps
+        ),
+        None => format!("model.coarse_volume.res = {} (comps {:?})", m.coarse_volume.res, m.coarse_volume.comps),
+    };
+    Err(format!(
+        "the model has {parameters} parameters: training needs about {:.1} GB (parameters, Adam state and {threads} \
+         gradient buffers) but {:.1} GB of memory is available; {volumes} size it; lower them (the cpu \
+         presets use res 256, the paper presets 256 and 512)",
+        gb(need),
+        gb(available)
+    ))
+}
+
+#[cfg(test)]
+mod memory_tests {
+    use super::*;
+    use crate::engine::model::Model;
+
+    #[test]
+    fn a_model_too_big_for_the_memory_is_refused_by_name_and_a_preset_fits() {
+        let mut cfg = crate::presets::nerf(crate::presets::Scale::Cpu);
+        let n = Model::new(&cfg.model).layout.len();
+        // 24 GB, this project's reference machine
+        let machine = Some(24_000_000_000);
+        assert_eq!(check_memory(&cfg, n, 2, machine), Ok(()));
+        assert_eq!(check_memory(&cfg, n, 2, None), Ok(()));
+        cfg.model.coarse_volume.res = 100_000;
+        let n = Model::new(&cfg.model).layout.len();
+        let e = check_memory(&cfg, n, 2, machine).unwrap_err();
+        assert!(e.contains("model.coarse_volume.res = 100000") && e.contains("GB of memory is available"), "{e}");
+        // an unknown amount of memory refuses nothing
+        assert_eq!(check_memory(&cfg, n, 2, None), Ok(()));
     }
 }

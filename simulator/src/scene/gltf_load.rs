@@ -69,6 +69,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let gltf = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| parse_error(path, e))?;
     let mut warnings = Vec::new();
     check_extensions(path, gltf.document.as_json(), &mut warnings)?;
+    check_position_accessors(path, gltf.document.as_json())?;
     let blob = gltf.blob;
     let mut json = gltf.document.into_json();
     // every required extension is one of ours now; the crate's validator would still reject
@@ -148,6 +149,30 @@ fn check_extensions(path: &Path, root: &gltf::json::Root, warnings: &mut Vec<Str
     for ext in &root.extensions_used {
         if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
             warnings.push(format!("{}: extension {ext} is used but not supported; it is ignored", path.display()));
+        }
+    }
+    Ok(())
+}
+
+/// Check every primitive's POSITION accessor index before the crate's validator runs: it reads
+/// that accessor's bounds without checking the index (gltf-json 1.4 panics on one out of range).
+fn check_position_accessors(path: &Path, root: &gltf::json::Root) -> Result<(), SceneError> {
+    use gltf::json::mesh::Semantic;
+    use gltf::json::validation::Checked;
+    let n = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            if let Some(a) = prim.attributes.get(&Checked::Valid(Semantic::Positions)).filter(|a| a.value() >= n) {
+                return Err(SceneError::invalid(
+                    path,
+                    format!("{} primitive {p} attribute POSITION", label("mesh", m, mesh.name.as_deref())),
+                    format!(
+                        "accessor {} is out of range: the file has {n} accessors; point POSITION at the primitive's \
+                         vertex positions or re-export the file",
+                        a.value()
+                    ),
+                ));
+            }
         }
     }
     Ok(())
@@ -506,6 +531,24 @@ mod tests {
 
         let e = load(&dir.join("absent.gltf")).unwrap_err();
         assert!(matches!(e, SceneError::Io { .. }), "{e}");
+    }
+
+    #[test]
+    fn position_accessor_out_of_range_is_invalid_not_a_panic() {
+        let dir = temp_dir("posrange");
+        let mut d = Doc::default();
+        d.mesh("Bad", &[0.0; 9], None, None, "");
+        d.meshes[0] = d.meshes[0].replace(r#""POSITION":0"#, r#""POSITION":99"#);
+        d.node(r#"{"mesh":0}"#);
+        let e = load(&d.write_embedded(&dir, "bad")).unwrap_err();
+        let msg = e.to_string();
+        assert!(matches!(e, SceneError::Invalid { .. }), "{msg}");
+        assert!(
+            msg.contains("bad.gltf")
+                && msg.contains("mesh 0 \"Bad\" primitive 0 attribute POSITION")
+                && msg.contains("accessor 99 is out of range: the file has 1 accessors"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -282,6 +282,7 @@ fn train(
         // The volume box is fitted to the dataset's cameras once and recorded with the run.
         let dataset = load(&data, &config, true)?;
         trainer::method::resolve(&mut config, &dataset);
+        trainer::train::check_fits_in_memory(&config, dataset.views.len()).map_err(|e| anyhow::anyhow!("{e}"))?;
         let record = RunRecord { preset, scale, data, config };
         std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the run folder", out.display()))?;
         simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;

@@ -511,6 +511,23 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
     assert!(e.contains("model.coarse_volume.res = 100000") && e.contains("GB of memory is available"), "{e}");
     assert!(!Path::new(&big).exists(), "{big} was created");
 
+    // --events-unit reaches the loader: these ns times read as us fall outside the trajectory.
+    let e = fails(&[
+        "train",
+        "--data",
+        data,
+        "--preset",
+        "e-nerf",
+        "--out",
+        &big,
+        "--events-unit",
+        "us",
+        "--iterations",
+        "1",
+        "--quiet",
+    ]);
+    assert!(e.contains("events.h5") && e.contains("outside the dense trajectory"), "{e}");
+
     // The same command again refuses, leaving the run as it was.
     let before = std::fs::read(run.checkpoint()).unwrap();
     let e = fails(&args);
@@ -519,6 +536,8 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
 
     // --resume refuses flags that would change the run, and trains it on to a new iteration
     // count (--data and --preset come from the run's config.toml).
+    let e = fails(&["train", "--resume", "--out", out, "--events-unit", "ns", "--quiet"]);
+    assert!(e.contains("--events-unit") && e.contains("config.toml"), "{e}");
     let e = fails(&["train", "--resume", "--out", out, "--seed", "7", "--iterations", "6", "--quiet"]);
     assert!(e.contains("--seed 7") && e.contains("config.toml"), "{e}");
     let first_rows = log_rows(&run);

@@ -28,6 +28,7 @@ use crate::engine::renderer::{RayChunk, Renderer};
 use crate::engine::rng::Rng;
 use crate::error::TrainError;
 use crate::method::{self, Method, StepData, StepLosses};
+use simulator::dataset::check::EventsUnit;
 
 /// Near plane of the NDC warp (the reference's 1, in the loader's scaled world).
 pub const NDC_NEAR: f64 = 1.0;
@@ -123,6 +124,10 @@ pub struct RunRecord {
     pub data: PathBuf,
     /// The resolved configuration (volume box and event model filled in from the dataset).
     pub config: TrainConfig,
+    /// The unit of the dataset's event times when forced (`evtrain train --events-unit`);
+    /// `Auto` (left out of the file): detected when the dataset is loaded.
+    #[serde(default, skip_serializing_if = "EventsUnit::is_auto")]
+    pub events_unit: EventsUnit,
 }
 
 /// Files of a run folder.

@@ -142,8 +142,13 @@ impl CellRun<'_> {
             // The thread count it starts with is recorded (evtrain resumes bit for bit with it).
             let mut config = TrainConfig { threads: self.threads, ..cell.config.clone() };
             trainer::method::resolve(&mut config, data);
-            let record =
-                RunRecord { preset: method.preset.name.to_string(), scale: plan.scale, data: data_abs, config };
+            let record = RunRecord {
+                preset: method.preset.name.to_string(),
+                scale: plan.scale,
+                data: data_abs,
+                config,
+                events_unit: Default::default(),
+            };
             std::fs::create_dir_all(&dir)
                 .map_err(|e| BenchError::results(&dir, format!("cannot create the cell's folder ({e})")))?;
             write_record(&record, &run.config())?;

@@ -67,7 +67,8 @@ impl fmt::Display for TestViewPolicy {
 }
 
 /// The unit of the event times `t` in `events.h5`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum EventsUnit {
     /// Decide from the magnitude of `t` against `all_timestamps.npy` (microseconds).
     #[default]
@@ -79,6 +80,11 @@ pub enum EventsUnit {
 }
 
 impl EventsUnit {
+    /// True for [`EventsUnit::Auto`] (a record leaves the default out).
+    pub fn is_auto(&self) -> bool {
+        *self == EventsUnit::Auto
+    }
+
     /// Microseconds per unit of `t` (`Auto`: ns, the spec's default).
     pub fn us_per_unit(self) -> f64 {
         match self {

@@ -24,8 +24,9 @@ pub struct LoadOptions {
     /// Which images are the sharp test views; `Auto` takes the policy the sharp marking of
     /// `timestamps.npz` matches (every 8th for the synthetic scenes, the last 5 for real ones).
     pub test_views: TestViewPolicy,
-    /// Unit of the event times in `events.h5`: ns (default, the synthetic scenes'
-    /// `events_tms_unit = ns`), us, or `Auto` (detected from the magnitude of `t`).
+    /// Unit of the event times in `events.h5`: `Auto` (default: detected from the magnitude of
+    /// `t` against the dense trajectory's times, as `evsim check` does), ns (the synthetic
+    /// scenes' `events_tms_unit = ns`) or us.
     pub events_unit: EventsUnit,
     /// Read the events (false: skip `events.h5`, e.g. for image-only presets and evaluation).
     pub read_events: bool,
@@ -39,7 +40,7 @@ impl Default for LoadOptions {
     fn default() -> LoadOptions {
         LoadOptions {
             test_views: TestViewPolicy::Auto,
-            events_unit: EventsUnit::Ns,
+            events_unit: EventsUnit::Auto,
             read_events: true,
             read_sharp: true,
             event_chunk: 1 << 20,

@@ -111,6 +111,10 @@ fn real_camera_style_dataset_loads() {
         // float32-rounded rotations are accepted and the poses are unit quaternions
         assert!(d.views.iter().all(|v| (v.pose.rotation.length() - 1.0).abs() < 1e-12));
     }
+    // the default detects microseconds too (it used to read every file as ns: a us file then
+    // trained on events squeezed into the trajectory's first thousandth)
+    assert_eq!(LoadOptions::default().events_unit, EventsUnit::Auto);
+    assert_eq!(Dataset::load(&dir, &LoadOptions::default()).unwrap().events.file_unit, EventsUnit::Us);
     // an ev_map of the wrong shape is refused by the check, naming the file
     let bad = NpyArray::new(&[W as usize, H as usize], vec![0f32; (W * H) as usize]).unwrap();
     write_npz(&dir.join("ev_map.npz"), &[("inv_mapx", bad.clone()), ("inv_mapy", bad)]).unwrap();

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
+use simulator::dataset::check::EventsUnit;
 use trainer::bench::BenchSettings;
 use trainer::checkpoint::Checkpoint;
 use trainer::config::TrainConfig;
@@ -62,6 +63,10 @@ enum Cmd {
         /// repeatable; a new run only.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
+        /// Unit of the dataset's event times (`auto`: detected from their magnitude against the
+        /// trajectory's times, as `evsim check` does); recorded with the run (a new run only).
+        #[arg(long, value_enum, default_value_t = EventsUnit::Auto)]
+        events_unit: EventsUnit,
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
@@ -145,14 +150,18 @@ enum Diagnose {
 fn main() -> Result<()> {
     let cli = Cli::parse();
     match cli.cmd {
-        Cmd::Train { data, preset, scale, out, config, resume, iterations, seed, threads, set, quiet } => {
+        Cmd::Train { data, preset, scale, out, config, resume, iterations, seed, threads, set, events_unit, quiet } => {
             if resume && config.is_some() {
                 bail!("--config: a resumed run keeps its recorded config.toml; drop --config");
             }
             if resume && !set.is_empty() {
                 bail!("--set: a resumed run keeps its recorded config.toml; drop --set");
             }
-            train(data, preset, scale, &out, config, resume, iterations, seed, threads, &set, quiet)
+            if resume && !events_unit.is_auto() {
+                bail!("--events-unit: a resumed run keeps its recorded unit (config.toml); drop --events-unit");
+            }
+            let flags = TrainFlags { iterations, seed, threads, events_unit };
+            train(data, preset, scale, &out, config, resume, flags, &set, quiet)
         }
         Cmd::Eval { run, threads } => eval(&run, threads),
         Cmd::Presets { show: None, .. } => {
@@ -181,10 +190,18 @@ fn main() -> Result<()> {
 }
 
 /// Loads the dataset, with its events only when the method uses them (evaluation never does).
-fn load(data: &Path, cfg: &TrainConfig, events: bool) -> Result<Dataset> {
+fn load(data: &Path, cfg: &TrainConfig, events: bool, events_unit: EventsUnit) -> Result<Dataset> {
     let read_events = events && cfg.needs_events();
-    let opts = LoadOptions { read_events, read_sharp: true, ..LoadOptions::default() };
+    let opts = LoadOptions { read_events, read_sharp: true, events_unit, ..LoadOptions::default() };
     Ok(Dataset::load(data, &opts)?)
+}
+
+/// `evtrain train`'s overrides of a new run's settings.
+struct TrainFlags {
+    iterations: Option<u64>,
+    seed: Option<u64>,
+    threads: Option<usize>,
+    events_unit: EventsUnit,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -195,12 +212,11 @@ fn train(
     out: &Path,
     config_file: Option<PathBuf>,
     resume: bool,
-    iterations: Option<u64>,
-    seed: Option<u64>,
-    threads: Option<usize>,
+    flags: TrainFlags,
     set: &[String],
     quiet: bool,
 ) -> Result<()> {
+    let TrainFlags { iterations, seed, threads, events_unit } = flags;
     let run = RunPaths::new(out);
     let (record, checkpoint, preloaded) = if resume {
         let text = std::fs::read_to_string(run.config())
@@ -228,7 +244,7 @@ fn train(
                 );
             }
         }
-        let dataset = load(&record.data, &record.config, true)?;
+        let dataset = load(&record.data, &record.config, true, record.events_unit)?;
         let method = Method::new(&record.config, dataset.views.len());
         let ck =
             if run.checkpoint().exists() { Some(Checkpoint::load(method.layout(), &run.checkpoint())?) } else { None };
@@ -280,17 +296,17 @@ fn train(
         let data =
             std::fs::canonicalize(&data).with_context(|| format!("--data {}: no such folder", data.display()))?;
         // The volume box is fitted to the dataset's cameras once and recorded with the run.
-        let dataset = load(&data, &config, true)?;
+        let dataset = load(&data, &config, true, events_unit)?;
         trainer::method::resolve(&mut config, &dataset);
         trainer::train::check_fits_in_memory(&config, dataset.views.len()).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let record = RunRecord { preset, scale, data, config };
+        let record = RunRecord { preset, scale, data, config, events_unit };
         std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the run folder", out.display()))?;
         simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
         (record, None, Some(dataset))
     };
     let dataset = match preloaded {
         Some(d) => d,
-        None => load(&record.data, &record.config, true)?,
+        None => load(&record.data, &record.config, true, record.events_unit)?,
     };
     let mut trainer = Trainer::new_in(&dataset, record.config.clone(), checkpoint, Some(&run.dir))?;
     let start = trainer.step;
@@ -345,7 +361,7 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
     let text = std::fs::read_to_string(run.config())
         .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
     let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
-    let dataset = load(&record.data, &record.config, false)?;
+    let dataset = load(&record.data, &record.config, false, record.events_unit)?;
     let method = Method::new(&record.config, dataset.views.len());
     let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
     let scores =
@@ -380,7 +396,8 @@ fn open_run(dir: &Path) -> Result<(RunPaths, RunRecord, Dataset)> {
     let text = std::fs::read_to_string(run.config())
         .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
     let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
-    let opts = LoadOptions { read_events: true, read_sharp: true, ..LoadOptions::default() };
+    let opts =
+        LoadOptions { read_events: true, read_sharp: true, events_unit: record.events_unit, ..LoadOptions::default() };
     let dataset = Dataset::load(&record.data, &opts)?;
     Ok((run, record, dataset))
 }

@@ -355,13 +355,42 @@ pub fn check_dataset(dir: &Path, opts: &CheckOptions) -> Result<CheckReport, Che
     if let Some(images) = &images {
         check_sharp_images(dir, images, &mut lines);
     }
-    if dir.join("dataset.toml").is_file() {
-        lines.ok("dataset.toml", "present (evblur manifest)");
-    } else {
-        lines.0.push(CheckLine::Absent {
+    match super::manifest::DatasetManifest::read(dir) {
+        Ok(Some(m)) => {
+            let fix = "the folder mixes two datasets or the manifest was edited; simulate it again (evsim dataset)";
+            if n.is_some_and(|n| n != m.views) {
+                lines.invalid(
+                    "dataset.toml",
+                    "views",
+                    format!("{} views, but images_1/ has {}", m.views, n.unwrap_or(0)),
+                    fix,
+                );
+            } else if let Some(e) = events.as_ref().filter(|e| e.count != m.events) {
+                lines.invalid(
+                    "dataset.toml",
+                    "events",
+                    format!("{} events, but events.h5 has {}", m.events, e.count),
+                    fix,
+                );
+            } else {
+                let c = &m.event_model;
+                lines.ok(
+                    "dataset.toml",
+                    format!("evblur manifest: thresholds {}/{}, log_eps {}", c.c_pos, c.c_neg, c.log_eps),
+                );
+            }
+        }
+        Ok(None) => lines.0.push(CheckLine::Absent {
             file: "dataset.toml".into(),
-            detail: "the evblur manifest (public datasets have none)".into(),
-        });
+            detail: "the evblur manifest (public datasets have none; the trainer then takes the reference event model)"
+                .into(),
+        }),
+        Err(e) => lines.invalid(
+            "dataset.toml",
+            "manifest",
+            e,
+            "restore the file evsim wrote (simulate the dataset again), or delete it to use the reference event model",
+        ),
     }
     Ok(CheckReport { dir: dir.to_path_buf(), lines: lines.0, n_images: n, image_size: size, test_views, events })
 }

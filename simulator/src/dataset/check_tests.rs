@@ -303,10 +303,11 @@ fn optional_files_are_checked_when_present() {
     let bad_map = NpyArray::new(&[W as usize, H as usize], vec![0.5f32; (W * H) as usize]).unwrap();
     write_npz(&dir.join("ev_map.npz"), &[("inv_mapx", map), ("inv_mapy", bad_map)]).unwrap();
     let r = check(&dir);
-    assert!(r.to_string().contains("ok       dataset.toml: present"), "{r}");
+    // a manifest is read strictly: a comment alone lacks every field
+    assert_problem(&r, &["dataset.toml: manifest: [event_model] has no c_pos"]);
     assert_problem(&r, &["images_sharp_1/: file names: differ from images_1/: missing [\"09.png\"]"]);
     assert_problem(&r, &["ev_map.npz: inv_mapy: shape [8, 6], expected (H, W) = Some([6, 8])"]);
-    assert_eq!(r.problems().count(), 2, "{r}");
+    assert_eq!(r.problems().count(), 3, "{r}");
 }
 
 /// Write `events.h5` column by column (any dtypes), as other tools would.

@@ -29,6 +29,7 @@ pub mod depth;
 pub mod error;
 pub mod fidelity;
 mod frame_tail;
+pub mod manifest;
 pub mod noise;
 pub mod plan;
 pub mod preview;

@@ -28,10 +28,10 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
-use serde::Serialize;
 
 use super::cache::{round_to_f16, FrameCache};
 use super::frame_tail::{Finished, FrameTail};
+use super::manifest::DatasetManifest;
 use super::plan::{Plan, PIPELINE_VERSION};
 use super::sequence::SequenceRenderer;
 use super::settings::NoisePattern;
@@ -45,7 +45,7 @@ use crate::npy::{write_npy, write_npz, NpyArray};
 use crate::render::film::{Image, RenderSettings};
 use crate::render::integrator::Renderer;
 use crate::render::radiance_cache::FillTimes;
-use crate::trajectory::{LlffCamera, Pose, TrajectoryConfig};
+use crate::trajectory::{LlffCamera, Pose};
 
 /// Every `DEPTH_STRIDE`-th pixel (in x and y) is traced for the depth bounds.
 pub const DEPTH_STRIDE: u32 = 4;
@@ -428,35 +428,6 @@ pub(super) fn write_png(path: &Path, img: &Image, plan: &Plan) -> Result<(), Dat
     write_atomic(path, &bytes).map_err(io_stage(path))
 }
 
-/// The manifest: every setting, the keys and the counts (no timings, so that the same inputs
-/// give the same bytes).
-#[derive(Serialize)]
-struct Manifest<'a> {
-    tool: &'static str,
-    version: &'static str,
-    pipeline_version: u32,
-    scene: String,
-    scene_key: &'a str,
-    render_key: &'a str,
-    settings_hash: &'a str,
-    frames: usize,
-    frame_period_ns: i64,
-    first_frame_ns: i64,
-    views: usize,
-    sharp_views: Vec<usize>,
-    exposure_ns: i64,
-    /// Absent when the sharp images are the sequence frames.
-    sharp_spp: Option<u32>,
-    yfov_deg: f64,
-    events: u64,
-    events_on: u64,
-    events_off: u64,
-    dataset: &'a super::DatasetConfig,
-    #[serde(rename = "event_model")]
-    event_model: &'a EventConfig,
-    trajectory: &'a TrajectoryConfig,
-}
-
 /// Write `timestamps.npz`, the pose files, `transforms.json` and the manifest.
 fn write_metadata(
     plan: &Plan,
@@ -509,14 +480,14 @@ fn write_metadata(
     let path = out.join("transforms.json");
     write_atomic(&path, transforms.as_bytes()).map_err(io_stage(&path))?;
 
-    let manifest = Manifest {
-        tool: "evsim",
-        version: env!("CARGO_PKG_VERSION"),
+    let manifest = DatasetManifest {
+        tool: "evsim".into(),
+        version: env!("CARGO_PKG_VERSION").into(),
         pipeline_version: PIPELINE_VERSION,
         scene: plan.scene_file.display().to_string(),
-        scene_key: &plan.scene_key,
-        render_key: &plan.render_key,
-        settings_hash: &plan.settings_hash,
+        scene_key: plan.scene_key.clone(),
+        render_key: plan.render_key.clone(),
+        settings_hash: plan.settings_hash.clone(),
         frames: plan.clock.n_frames,
         frame_period_ns: plan.clock.dt_ns,
         first_frame_ns: plan.clock.t0_ns,
@@ -528,14 +499,11 @@ fn write_metadata(
         events: summary.events_on + summary.events_off,
         events_on: summary.events_on,
         events_off: summary.events_off,
-        dataset: &plan.config,
-        event_model: &plan.events,
-        trajectory: &plan.trajectory_config,
+        dataset: plan.config.clone(),
+        event_model: plan.events.clone(),
+        trajectory: plan.trajectory_config.clone(),
     };
-    let text = format!(
-        "# evsim dataset manifest: written last, so its presence marks a complete dataset\n{}",
-        toml::to_string(&manifest).map_err(|e| DatasetError::stage("dataset.toml", e))?
-    );
+    let text = manifest.to_toml().map_err(|e| DatasetError::stage("dataset.toml", e))?;
     let path = out.join("dataset.toml");
     write_atomic(&path, text.as_bytes()).map_err(io_stage(&path))
 }

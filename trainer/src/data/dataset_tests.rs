@@ -246,3 +246,32 @@ fn methods_without_events_take_the_datasets_thresholds_for_edi() {
     ours.events.as_mut().unwrap().threshold = None;
     assert_eq!(crate::method::event_thresholds(&ours, &data), [0.35, 0.3]);
 }
+
+#[test]
+fn a_damaged_or_foreign_manifest_is_refused_not_ignored() {
+    let dir = copy("damaged-manifest");
+    let manifest = dir.join("dataset.toml");
+    let good = std::fs::read_to_string(&manifest).unwrap();
+    // one more in the line `key = N` (a count that no longer matches events.h5)
+    let bump = |text: &str, key: &str| -> String {
+        let line = text.lines().find(|l| l.starts_with(&format!("{key} = "))).unwrap();
+        let n: u64 = line.rsplit(' ').next().unwrap().parse().unwrap();
+        text.replacen(line, &format!("{key} = {}", n + 1), 1)
+    };
+    let cases = [
+        // a broken line appended: it used to be read as no manifest, and the thresholds as 0.2
+        (format!("{good}c_pos = \n"), "not valid TOML"),
+        (good.replacen("[event_model]\n", "[event_model]\nthreshold = 0.5\n", 1), "unknown field `threshold`"),
+        (bump(&bump(&good, "events"), "events_on"), "events.h5 has"),
+        (good.replacen("\nviews = ", "\nviews = 1", 1), "images_1/ has"),
+    ];
+    for (text, want) in cases {
+        std::fs::write(&manifest, &text).unwrap();
+        let e = Dataset::load(&dir, &LoadOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("dataset.toml") && e.contains(want), "{want}: {e}");
+    }
+    // without a manifest (a public dataset) the dataset loads
+    std::fs::remove_file(&manifest).unwrap();
+    assert!(Dataset::load(&dir, &LoadOptions::default()).is_ok());
+    let _ = std::fs::remove_dir_all(&dir);
+}

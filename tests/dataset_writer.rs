@@ -304,6 +304,13 @@ fn bad_settings_name_the_field() {
     check(&|t| t.replace("spp = 2\n", "spp = 2\ntemporal_stride = 0\n"), &["dataset.temporal_stride", "1..=64"]);
     check(&|t| t.replace("spp = 2\n", "spp = 2\nglossy_grid_alpha = 1.5\n"), &["dataset.glossy_grid_alpha", "0..=1"]);
     check(&|t| t.replace("spp = 2\n", "spp = 2\nglossy_grid_alpha = nan\n"), &["dataset.glossy_grid_alpha"]);
+    // no sharp test views (0) or another marking than every 8th: a dataset the loader rejects
+    for every in ["0", "4"] {
+        check(
+            &|t| t.replace("spp = 2\n", &format!("spp = 2\nsharp_every = {every}\n")),
+            &["dataset.sharp_every", "set 8"],
+        );
+    }
     std::fs::write(&toml, &text).unwrap();
     let e = Plan::resolve(&toml, &Overrides { threshold: Some(-0.1), ..Overrides::default() }).unwrap_err();
     assert!(e.to_string().contains("events") && e.to_string().contains("c_pos"), "{e}");

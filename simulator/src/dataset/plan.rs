@@ -362,6 +362,16 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
     if d.views < 2 {
         return bad("dataset.views", format!("{} must be at least 2", d.views));
     }
+    if d.sharp_every != 8 {
+        return bad(
+            "dataset.sharp_every",
+            format!(
+                "{} writes a marking the Ev-DeblurNeRF loader cannot read: it takes every 8th view (0, 8, 16, ...) \
+                 as a sharp test view (llffhold = 8), and evsim check and evtrain follow it; set 8",
+                d.sharp_every
+            ),
+        );
+    }
     for (field, v) in [("dataset.first_view_ms", d.first_view_ms), ("dataset.spacing_ms", d.spacing_ms)] {
         if let Some(v) = v {
             if !(v > 0.0 && v.is_finite()) {

@@ -91,7 +91,8 @@ pub struct DatasetConfig {
     pub exposure_ms: f64,
     /// Number of images in `images_1/` (>= 2).
     pub views: u32,
-    /// Every `sharp_every`-th view (index 0, n, 2n, ...) is a sharp test view; 0 = none.
+    /// Every `sharp_every`-th view (index 0, n, 2n, ...) is a sharp test view; only 8 is
+    /// accepted, the Ev-DeblurNeRF loader's `llffhold`.
     pub sharp_every: u32,
     /// Time from the trajectory's start to the mid-time of view 0 (ms); default
     /// `max(50, exposure_ms / 2 + one frame)`, so that exposure sweeps up to ~100 ms keep the

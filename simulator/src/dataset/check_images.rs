@@ -28,12 +28,23 @@ fn png_names(dir: &Path) -> Option<Vec<String>> {
     Some(names)
 }
 
-/// The (width, height, colour) of a PNG from its header.
-fn png_header(path: &Path) -> Result<(u32, u32, ColorType), String> {
+/// Largest decoded image the check reads (bytes): 16384 x 16384 RGBA16 is 2 GiB.
+const MAX_DECODED_BYTES: u64 = 1 << 31;
+
+/// The (width, height, colour) of a PNG, decoded in full: a truncated or corrupt image data
+/// stream is an error here, not later in the trainer.
+fn png_decode(path: &Path) -> Result<(u32, u32, ColorType), String> {
     let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let decoder = PngDecoder::new(std::io::BufReader::new(file)).map_err(|e| e.to_string())?;
     let (w, h) = decoder.dimensions();
-    Ok((w, h, decoder.color_type()))
+    let colour = decoder.color_type();
+    let bytes = decoder.total_bytes();
+    if bytes > MAX_DECODED_BYTES {
+        return Err(format!("{w}x{h} {colour:?} decodes to {bytes} bytes, more than the check reads"));
+    }
+    let mut buf = vec![0u8; bytes as usize];
+    decoder.read_image(&mut buf).map_err(|e| format!("image data cannot be decoded: {e}"))?;
+    Ok((w, h, colour))
 }
 
 /// The number in a file stem's last run of digits (`"00012"` -> 12, `"img_07"` -> 7).
@@ -70,7 +81,7 @@ pub(super) fn check_images(dir: &Path, lines: &mut Lines) -> Option<Images> {
     // Headers: one size, 8-bit RGB (RGBA: the loader keeps [..., :3], a warning).
     let (mut size, mut rgba, mut sizes_differ) = (None, Vec::new(), false);
     for name in &names {
-        match png_header(&dir.join("images_1").join(name)) {
+        match png_decode(&dir.join("images_1").join(name)) {
             Err(e) => lines.unreadable(&format!("images_1/{name}"), e, "write it again as an 8-bit RGB PNG"),
             Ok((w, h, colour)) => {
                 match size {
@@ -141,7 +152,7 @@ pub(super) fn check_sharp_images(dir: &Path, images: &Images, lines: &mut Lines)
     }
     for name in &names {
         let file = format!("images_sharp_1/{name}");
-        match png_header(&dir.join("images_sharp_1").join(name)) {
+        match png_decode(&dir.join("images_sharp_1").join(name)) {
             Err(e) => lines.unreadable(&file, e, "write it again as an 8-bit RGB PNG"),
             Ok((w, h, colour)) => {
                 if images.size.is_some_and(|s| s != (w, h)) {

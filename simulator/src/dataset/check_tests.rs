@@ -365,3 +365,15 @@ fn bad_event_columns_are_reported() {
     });
     assert_problem(&check(&dir), &["events.h5: p: dataset missing"]);
 }
+
+#[test]
+fn a_truncated_png_is_a_problem_not_a_pass() {
+    let dir = fixture("truncated-png");
+    let path = dir.join("images_1/03.png");
+    let bytes = std::fs::read(&path).unwrap();
+    // the header (IHDR) survives, the image data stream is cut
+    std::fs::write(&path, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let r = check(&dir);
+    assert_problem(&r, &["images_1/03.png", "cannot be decoded"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

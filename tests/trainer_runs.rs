@@ -511,6 +511,27 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
     assert!(e.contains("model.coarse_volume.res = 100000") && e.contains("GB of memory is available"), "{e}");
     assert!(!Path::new(&big).exists(), "{big} was created");
 
+    // A lost checkpoint is not a silent restart at step 0 once one was due.
+    let lost = format!("{out}-lost");
+    ok(&[
+        "train",
+        "--data",
+        data,
+        "--preset",
+        "nerf",
+        "--out",
+        &lost,
+        "--iterations",
+        "4",
+        "--quiet",
+        "--set",
+        "checkpoint_every=2",
+    ]);
+    std::fs::remove_file(Path::new(&lost).join("checkpoint.bin")).unwrap();
+    let e = fails(&["train", "--resume", "--out", &lost, "--iterations", "6", "--quiet"]);
+    assert!(e.contains("checkpoint.bin: missing") && e.contains("log.csv records 4 steps"), "{e}");
+    std::fs::remove_dir_all(&lost).unwrap();
+
     // --events-unit reaches the loader: these ns times read as us fall outside the trajectory.
     let e = fails(&[
         "train",

@@ -1,7 +1,9 @@
 //! Checkpoints: parameters, Adam moments and the step, in one binary file written atomically
 //! (temporary file + rename), so an interrupted write leaves the previous checkpoint intact.
 //! Layout (little-endian): magic `EVBLURCK`, format version u32, layout fingerprint u64, step
-//! u64, parameter count u64, then params, m and v as f32. Same run, same bytes: the training
+//! u64, parameter count u64, then params, m and v as f32, then (format 3) a u64 checksum of
+//! everything before it, so a flipped or lost byte is refused instead of resuming to NaN or to
+//! other numbers (format 2, without it, still loads). Same run, same bytes: the training
 //! wall time, which cannot repeat, goes to a text sidecar (`<checkpoint>.seconds`:
 //! "step seconds").
 
@@ -12,8 +14,29 @@ use crate::engine::params::Layout;
 use crate::error::TrainError;
 
 const MAGIC: &[u8; 8] = b"EVBLURCK";
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
+/// The previous format: the same without the checksum.
+const VERSION_UNCHECKED: u32 = 2;
 const HEADER: usize = 36;
+const CHECKSUM: usize = 8;
+
+/// A 64-bit checksum of `bytes` (8-byte words, multiply-xorshift mixed; the tail zero-padded):
+/// fast enough for checkpoints of hundreds of MB, and any flipped byte changes it.
+pub fn checksum(bytes: &[u8]) -> u64 {
+    const K: u64 = 0x9e37_79b9_7f4a_7c15;
+    let mix = |h: u64, w: u64| {
+        let h = (h ^ w).wrapping_mul(K);
+        h ^ (h >> 29)
+    };
+    let mut chunks = bytes.chunks_exact(8);
+    let mut h = mix(0x6576_626c_7572_636b, bytes.len() as u64);
+    for c in &mut chunks {
+        h = mix(h, u64::from_le_bytes(c.try_into().expect("8 bytes")));
+    }
+    let mut tail = [0u8; 8];
+    tail[..chunks.remainder().len()].copy_from_slice(chunks.remainder());
+    mix(h, u64::from_le_bytes(tail))
+}
 
 /// A training state.
 #[derive(Clone, Debug, PartialEq)]
@@ -43,7 +66,7 @@ impl Checkpoint {
     /// Writes the checkpoint to `path` atomically.
     pub fn save(&self, layout: &Layout, path: &Path) -> Result<(), TrainError> {
         let n = self.params.len();
-        let mut bytes = Vec::with_capacity(HEADER + 12 * n);
+        let mut bytes = Vec::with_capacity(HEADER + 12 * n + CHECKSUM);
         bytes.extend_from_slice(MAGIC);
         bytes.extend_from_slice(&VERSION.to_le_bytes());
         bytes.extend_from_slice(&fingerprint(layout).to_le_bytes());
@@ -54,6 +77,8 @@ impl Checkpoint {
                 bytes.extend_from_slice(&x.to_le_bytes());
             }
         }
+        let sum = checksum(&bytes);
+        bytes.extend_from_slice(&sum.to_le_bytes());
         let write = |p: &Path, b: &[u8]| {
             simulator::image_io::write_atomic(p, b).map_err(|e| {
                 TrainError::run(
@@ -76,16 +101,25 @@ impl Checkpoint {
         }
         let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
         let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
-        if version != VERSION {
-            return Err(bad(&format!("checkpoint format {version}, this build reads {VERSION}")));
+        if version != VERSION && version != VERSION_UNCHECKED {
+            return Err(bad(&format!(
+                "checkpoint format {version}, this build reads {VERSION_UNCHECKED} and {VERSION}"
+            )));
         }
+        let tail = if version == VERSION { CHECKSUM } else { 0 };
         if u64_at(12) != fingerprint(layout) {
             return Err(bad("saved for a different model shape than config.toml describes"));
         }
         let step = u64_at(20);
         let n = u64_at(28) as usize;
-        if n != layout.len() || bytes.len() != HEADER + 12 * n {
+        if n != layout.len() || bytes.len() as u64 != (HEADER + tail) as u64 + 12 * n as u64 {
             return Err(bad(&format!("truncated: {} bytes for {} parameters", bytes.len(), layout.len())));
+        }
+        if tail > 0 {
+            let body = bytes.len() - CHECKSUM;
+            if u64::from_le_bytes(bytes[body..].try_into().expect("8 bytes")) != checksum(&bytes[..body]) {
+                return Err(bad("corrupted: its checksum does not match its content"));
+            }
         }
         let read = |k: usize| -> Vec<f32> {
             bytes[HEADER + 4 * n * k..HEADER + 4 * n * (k + 1)]
@@ -140,6 +174,19 @@ mod tests {
         // A sidecar of another step is ignored (time unknown: 0).
         std::fs::write(seconds_path(&path), "6 3.0\n").unwrap();
         assert_eq!(Checkpoint::load(&layout, &path).unwrap().seconds, 0.0);
+        // Any flipped byte is refused: in a value, in the step, in the checksum itself.
+        for at in [HEADER + 5, 20, bytes.len() - 1] {
+            let mut bad = bytes.clone();
+            bad[at] ^= 0x10;
+            std::fs::write(&path, &bad).unwrap();
+            let e = Checkpoint::load(&layout, &path).unwrap_err().to_string();
+            assert!(e.contains("checksum") && e.contains("checkpoint.bin"), "byte {at}: {e}");
+        }
+        // The previous format (2, no checksum) still loads.
+        let mut old = bytes[..bytes.len() - CHECKSUM].to_vec();
+        old[8..12].copy_from_slice(&VERSION_UNCHECKED.to_le_bytes());
+        std::fs::write(&path, &old).unwrap();
+        assert_eq!(Checkpoint::load(&layout, &path).unwrap().params, ck.params);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

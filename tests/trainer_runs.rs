@@ -480,6 +480,14 @@ fn fails(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// `evtrain train` of a new run in `out`: dataset, preset, folder, then `flags`, quietly.
+fn new_run<'a>(data: &'a str, preset: &'a str, out: &'a str, flags: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec!["train", "--data", data, "--preset", preset, "--out", out];
+    args.extend_from_slice(flags);
+    args.push("--quiet");
+    args
+}
+
 #[test]
 fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
     let run = run_dir("cli");
@@ -496,57 +504,20 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
 
     // A volume too big for the machine's memory is refused by name, before anything is written.
     let big = format!("{out}-big");
-    let e = fails(&[
-        "train",
-        "--data",
-        data,
-        "--preset",
-        "nerf",
-        "--out",
-        &big,
-        "--set",
-        "model.coarse_volume.res=100000",
-        "--quiet",
-    ]);
+    let e = fails(&new_run(data, "nerf", &big, &["--set", "model.coarse_volume.res=100000"]));
     assert!(e.contains("model.coarse_volume.res = 100000") && e.contains("GB of memory is available"), "{e}");
     assert!(!Path::new(&big).exists(), "{big} was created");
 
     // A lost checkpoint is not a silent restart at step 0 once one was due.
     let lost = format!("{out}-lost");
-    ok(&[
-        "train",
-        "--data",
-        data,
-        "--preset",
-        "nerf",
-        "--out",
-        &lost,
-        "--iterations",
-        "4",
-        "--quiet",
-        "--set",
-        "checkpoint_every=2",
-    ]);
+    ok(&new_run(data, "nerf", &lost, &["--iterations", "4", "--set", "checkpoint_every=2"]));
     std::fs::remove_file(Path::new(&lost).join("checkpoint.bin")).unwrap();
     let e = fails(&["train", "--resume", "--out", &lost, "--iterations", "6", "--quiet"]);
     assert!(e.contains("checkpoint.bin: missing") && e.contains("log.csv records 4 steps"), "{e}");
     std::fs::remove_dir_all(&lost).unwrap();
 
     // --events-unit reaches the loader: these ns times read as us fall outside the trajectory.
-    let e = fails(&[
-        "train",
-        "--data",
-        data,
-        "--preset",
-        "e-nerf",
-        "--out",
-        &big,
-        "--events-unit",
-        "us",
-        "--iterations",
-        "1",
-        "--quiet",
-    ]);
+    let e = fails(&new_run(data, "e-nerf", &big, &["--events-unit", "us", "--iterations", "1"]));
     assert!(e.contains("events.h5") && e.contains("outside the dense trajectory"), "{e}");
 
     // The same command again refuses, leaving the run as it was.

@@ -23,6 +23,7 @@ use crate::data::rays::Ray;
 use crate::engine::adam::Adam;
 use crate::engine::model::{Aabb, Model};
 use crate::engine::parallel::GradBuffers;
+use crate::engine::params::Layout;
 use crate::engine::real::Real;
 use crate::engine::renderer::{RayChunk, Renderer};
 use crate::engine::rng::Rng;
@@ -161,6 +162,27 @@ impl RunPaths {
     /// Evaluation outputs.
     pub fn eval(&self) -> PathBuf {
         self.dir.join("eval")
+    }
+
+    /// The checkpoint to resume from (saved for `layout`), or `None` when the run has not
+    /// reached its first one (`checkpoint_every` steps); a checkpoint missing once one was due
+    /// (the log records that many steps) is an error, not a silent restart at step 0.
+    pub fn resume_checkpoint(&self, layout: &Layout, checkpoint_every: u64) -> Result<Option<Checkpoint>, TrainError> {
+        let path = self.checkpoint();
+        if path.is_file() {
+            return Checkpoint::load(layout, &path).map(Some);
+        }
+        let logged = std::fs::read_to_string(self.log()).map_or(0, |t| t.lines().skip(1).count() as u64);
+        if logged >= checkpoint_every {
+            return Err(TrainError::run(
+                path,
+                format!(
+                    "missing, but log.csv records {logged} steps and a checkpoint is written every {checkpoint_every}"
+                ),
+                "restore the checkpoint, or delete the run folder to train from step 0",
+            ));
+        }
+        Ok(None)
     }
 }
 

@@ -11,7 +11,6 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use trainer::checkpoint::Checkpoint;
 use trainer::config::TrainConfig;
 use trainer::data::dataset::{Dataset, LoadOptions};
 use trainer::method::Method;
@@ -132,11 +131,7 @@ impl CellRun<'_> {
                 write_record(&record, &run.config())?;
             }
             let layout = Method::new(&record.config, data.views.len());
-            let ck = if run.checkpoint().is_file() {
-                Some(Checkpoint::load(layout.layout(), &run.checkpoint())?)
-            } else {
-                None
-            };
+            let ck = run.resume_checkpoint(layout.layout(), record.config.checkpoint_every)?;
             (record, ck)
         } else {
             // The thread count it starts with is recorded (evtrain resumes bit for bit with it).

@@ -246,21 +246,7 @@ fn train(
         }
         let dataset = load(&record.data, &record.config, true, record.events_unit)?;
         let method = Method::new(&record.config, dataset.views.len());
-        let ck = if run.checkpoint().exists() {
-            Some(Checkpoint::load(method.layout(), &run.checkpoint())?)
-        } else {
-            // No checkpoint is fine before the first one is due; after that it was lost.
-            let logged = std::fs::read_to_string(run.log()).map_or(0, |t| t.lines().skip(1).count() as u64);
-            let every = record.config.checkpoint_every;
-            if logged >= every {
-                bail!(
-                    "{}: missing, but log.csv records {logged} steps and a checkpoint is written every {every}; \
-                     restore the checkpoint, or delete the run folder to train from step 0",
-                    run.checkpoint().display()
-                );
-            }
-            None
-        };
+        let ck = run.resume_checkpoint(method.layout(), record.config.checkpoint_every)?;
         if let Some(n) = iterations.filter(|n| *n != record.config.iterations) {
             let done = ck.as_ref().map_or(0, |c| c.step);
             if n < done {

@@ -223,7 +223,15 @@ fn resumes_to_the_same_bytes(shading: Shading) {
     let e = write_dataset(&p, &o).unwrap_err();
     assert!(matches!(e, DatasetError::Interrupted { frames: 50 }), "{e}");
     assert!(!b.join("dataset.toml").exists(), "no manifest before the end");
+    // what a kill leaves: temporary files of the event file, a view and a cached frame
+    let killed = [".events.h5.tmp424242", "images_1/.03.png.tmp424242"];
+    for f in killed {
+        std::fs::write(b.join(f), b"half").unwrap();
+    }
+    let cached = std::fs::read_dir(b.join(".frames")).unwrap().next().unwrap().unwrap().path();
+    std::fs::write(cached.join(".key.toml.tmp424242"), b"half").unwrap();
     let s = write_dataset(&p, &opts(&b, None)).unwrap();
+    assert_eq!(hidden_entries(&b), Vec::<String>::new(), "no temporary file or frame cache survives");
     assert_eq!((s.frames_rendered, s.sharp_rendered), (70, 9), "resumes after the 50 cached frames");
     if shading == Shading::PathTraced {
         // the temporal window of frame 50 needs the `radius` frames before it again (not their
@@ -244,6 +252,52 @@ fn resumes_to_the_same_bytes(shading: Shading) {
     let p2 = Plan::resolve(&toml, &swept).unwrap();
     let s = write_dataset(&p2, &opts(&dir.join("d"), Some(cache))).unwrap();
     assert_eq!((s.frames_rendered, s.sharp_rendered), (0, 0));
+}
+
+/// The hidden files and folders under `dir` (relative paths), sorted.
+fn hidden_entries(dir: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.file_name().unwrap().to_string_lossy().starts_with('.') {
+                out.push(p.strip_prefix(dir).unwrap().display().to_string());
+            } else if p.is_dir() {
+                stack.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn a_second_writer_is_refused_and_a_killed_clean_up_is_finished() {
+    let dir = temp_dir("dataset", "lock");
+    let toml = tiny_scene(&dir);
+    let p = plan(&toml);
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    // a writer holds the folder (a lock is per open file, so this process's own lock conflicts
+    // as another process's would)
+    let held = simulator::lock::FolderLock::acquire(&out).unwrap();
+    let e = write_dataset(&p, &opts(&out, None)).unwrap_err();
+    assert!(matches!(e, DatasetError::Locked(_)), "{e}");
+    let msg = e.to_string();
+    assert!(msg.contains(&format!("pid {}", std::process::id())) && msg.contains(&*out.to_string_lossy()), "{msg}");
+    assert!(!out.join("events.h5").exists() && !out.join("images_1").exists(), "the second writer wrote nothing");
+    drop(held);
+
+    write_dataset(&p, &opts(&out, None)).unwrap();
+    assert_eq!(hidden_entries(&out), Vec::<String>::new());
+    // a run killed while deleting its frame cache leaves it renamed; the next run (which finds
+    // the dataset complete) removes it
+    std::fs::create_dir_all(out.join(".frames.removing/abc")).unwrap();
+    std::fs::write(out.join(".frames.removing/abc/f000001.exr"), b"x").unwrap();
+    let s = write_dataset(&p, &opts(&out, None)).unwrap();
+    assert!(s.already_complete);
+    assert_eq!(hidden_entries(&out), Vec::<String>::new());
 }
 
 #[test]
@@ -299,6 +353,7 @@ fn bad_settings_name_the_field() {
         &["dataset.adaptive_variance", "positive"],
     );
     check(&|t| t.replace("spp = 2\n", "spp = 2\nspp_max = 5000\n"), &["dataset.spp_max"]);
+    check(&|t| t.replace("spp = 2\n", "spp = 2\nspp_max = 1\n"), &["dataset.spp_max", "below spp = 2"]);
     check(&|t| t.split("[trajectory]").next().unwrap().to_string(), &["trajectory", "missing"]);
     check(&|t| t.replace("sharp_spp = 4", "sharp_spp = 1"), &["dataset.sharp_spp"]);
     check(&|t| t.replace("spp = 2\n", "spp = 2\ntemporal_stride = 0\n"), &["dataset.temporal_stride", "1..=64"]);

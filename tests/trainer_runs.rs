@@ -532,8 +532,20 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
     assert!(e.contains("--events-unit") && e.contains("config.toml"), "{e}");
     let e = fails(&["train", "--resume", "--out", out, "--seed", "7", "--iterations", "6", "--quiet"]);
     assert!(e.contains("--seed 7") && e.contains("config.toml"), "{e}");
+    // A run another process holds is refused with its pid (a lock belongs to the open file,
+    // so this process's lock stands in for another's); a kill's half-written checkpoint is
+    // removed by the next resume.
+    let held = simulator::lock::FolderLock::acquire(&run.dir).unwrap();
+    let e = fails(&["train", "--resume", "--out", out, "--iterations", "6", "--quiet"]);
+    assert!(e.contains(&format!("another process (pid {})", std::process::id())) && e.contains(out), "{e}");
+    let e = fails(&["eval", out]);
+    assert!(e.contains(&format!("pid {}", std::process::id())), "{e}");
+    drop(held);
+    let killed = run.dir.join(".checkpoint.bin.tmp424242");
+    std::fs::write(&killed, b"half").unwrap();
     let first_rows = log_rows(&run);
     ok(&["train", "--resume", "--out", out, "--iterations", "6", "--quiet"]);
+    assert!(!killed.exists() && !run.dir.join(".evblur.lock").exists());
     let rows = log_rows(&run);
     assert_eq!(rows.len(), 6);
     assert_eq!(rows[..4], first_rows[..]);

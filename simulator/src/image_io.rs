@@ -22,7 +22,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
             .with_context(|| format!("{}: cannot create the output folder; choose another --out", parent.display()))?;
     }
     let tmp = temp_path(path);
-    std::fs::write(&tmp, bytes).with_context(|| {
+    std::fs::write(&tmp, bytes).inspect_err(|_| drop(std::fs::remove_file(&tmp))).with_context(|| {
         format!("{}: cannot write (is the folder there and writable? create it or choose another --out)", tmp.display())
     })?;
     std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot move into place", path.display()))?;

@@ -29,6 +29,7 @@ pub mod events;
 pub mod export;
 pub mod exposure;
 pub mod image_io;
+pub mod lock;
 pub mod npy;
 pub mod reference;
 pub mod render;

@@ -30,6 +30,7 @@ use crate::engine::rng::Rng;
 use crate::error::TrainError;
 use crate::method::{self, Method, StepData, StepLosses};
 use simulator::dataset::check::EventsUnit;
+use simulator::lock::{FolderLock, LockError};
 
 /// Near plane of the NDC warp (the reference's 1, in the loader's scaled world).
 pub const NDC_NEAR: f64 = 1.0;
@@ -162,6 +163,25 @@ impl RunPaths {
     /// Evaluation outputs.
     pub fn eval(&self) -> PathBuf {
         self.dir.join("eval")
+    }
+
+    /// Lock the run folder (which must exist) for this process: another process training or
+    /// evaluating it is refused with its pid. Removes the temporary files a killed process left
+    /// there (a half-written `.checkpoint.bin.tmp<pid>`). Hold it while writing the run.
+    pub fn lock(&self) -> Result<FolderLock, TrainError> {
+        let lock = FolderLock::acquire(&self.dir).map_err(|e| match e {
+            LockError::Held { pid, .. } => TrainError::run(
+                &self.dir,
+                format!("another process (pid {pid}) is training or evaluating this run"),
+                "wait for it to finish or stop it, or choose another --out",
+            ),
+            LockError::Io { path, source } => {
+                TrainError::io(&path, source, "check that the run folder exists and is writable")
+            }
+        })?;
+        simulator::lock::remove_stale_temps(&self.dir)
+            .map_err(|e| TrainError::io(&self.dir, e, "remove the temporary files by hand"))?;
+        Ok(lock)
     }
 
     /// The checkpoint to resume from (saved for `layout`), or `None` when the run has not

@@ -113,6 +113,11 @@ impl CellRun<'_> {
         let data_abs = std::fs::canonicalize(data_dir)
             .map_err(|e| BenchError::results(data_dir, format!("cannot resolve the dataset folder ({e})")))?;
 
+        std::fs::create_dir_all(&dir)
+            .map_err(|e| BenchError::results(&dir, format!("cannot create the cell's folder ({e})")))?;
+        // one process per cell (shards sharing a results folder never run the same cell, but two
+        // runs of one matrix might)
+        let _lock = run.lock()?;
         // The run record: the cell's own when it was started before, else a new one.
         let (mut record, checkpoint) = if run.config().is_file() {
             let mut record = read_record(&run.config())?;
@@ -144,8 +149,6 @@ impl CellRun<'_> {
                 config,
                 events_unit: Default::default(),
             };
-            std::fs::create_dir_all(&dir)
-                .map_err(|e| BenchError::results(&dir, format!("cannot create the cell's folder ({e})")))?;
             write_record(&record, &run.config())?;
             (record, None)
         };

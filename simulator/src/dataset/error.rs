@@ -44,6 +44,9 @@ pub enum DatasetError {
         /// What went wrong.
         message: String,
     },
+    /// Another process is writing the dataset folder, or it cannot be locked.
+    #[error(transparent)]
+    Locked(#[from] crate::lock::LockError),
     /// The run was stopped on request (tests and Ctrl-C) after `frames` frames.
     #[error("interrupted after {frames} rendered frames; run the same command again to resume")]
     Interrupted {

@@ -22,7 +22,9 @@
 //!
 //! Every file is written atomically. An interrupted run resumes from the cached frames (the
 //! event and exposure stages are re-run over them, which takes seconds); a complete folder with
-//! the same settings hash is left alone.
+//! the same settings hash is left alone. The folder is locked while a run writes it
+//! ([`FolderLock`]): a second run into it is refused with the first one's pid, and the
+//! temporary files of a killed run are removed by the next.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -41,6 +43,7 @@ use crate::events::EventSink;
 use crate::events::{EventConfig, EventSimulator};
 use crate::exposure::{Exposure, ExposureStack, ViewSpec};
 use crate::image_io::write_atomic;
+use crate::lock::FolderLock;
 use crate::npy::{write_npy, write_npz, NpyArray};
 use crate::render::film::{Image, RenderSettings};
 use crate::render::integrator::Renderer;
@@ -125,6 +128,10 @@ pub fn image_name(i: usize, n: usize) -> String {
     let digits = n.saturating_sub(1).to_string().len().max(2);
     format!("{i:0digits$}.png")
 }
+
+/// The default frame cache (`<out>/.frames`) is renamed to this before it is deleted, and a
+/// leftover of that name (a run killed while deleting) is removed by the next run.
+const FRAMES_BEING_REMOVED: &str = ".frames.removing";
 
 /// The files a complete dataset holds (besides the images).
 pub const METADATA_FILES: [&str; 6] = [
@@ -214,6 +221,16 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
         METADATA_FILES.iter().all(|f| out.join(f).is_file())
             && (0..n_views).all(|i| images.join(image_name(i, n_views)).is_file())
     };
+    std::fs::create_dir_all(out).map_err(|e| DatasetError::io(out, "cannot create (choose another --out)", e))?;
+    // one writer at a time; what a killed writer left is removed by the next one
+    let _lock = FolderLock::acquire(out)?;
+    let removing = out.join(FRAMES_BEING_REMOVED);
+    if removing.exists() {
+        std::fs::remove_dir_all(&removing).map_err(|e| {
+            DatasetError::io(&removing, "cannot remove this frame cache of a finished run; delete it", e)
+        })?;
+    }
+    crate::lock::remove_stale_temps(out).map_err(|e| DatasetError::io(out, "cannot clean up", e))?;
     match manifest_hash(out) {
         Some(h) if h == plan.settings_hash && complete(out) => {
             return Ok(Summary { already_complete: true, frames: plan.clock.n_frames, ..Summary::default() })
@@ -364,7 +381,11 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     summary.metadata_time += t.elapsed();
     pb.finish_and_clear();
     if opts.frames_cache.is_none() && !opts.keep_frames {
-        let _ = std::fs::remove_dir_all(&cache_root); // best effort: the dataset is complete
+        // renamed first, so that a run killed while deleting leaves a name the next run removes
+        let removing = out.join(FRAMES_BEING_REMOVED);
+        if std::fs::rename(&cache_root, &removing).is_ok() {
+            let _ = std::fs::remove_dir_all(&removing); // best effort: the dataset is complete
+        }
     }
     summary.peak_rss[2] = peak_rss();
     Ok(summary)

@@ -218,9 +218,12 @@ fn train(
 ) -> Result<()> {
     let TrainFlags { iterations, seed, threads, events_unit } = flags;
     let run = RunPaths::new(out);
+    // held until the run ends: one process per run folder
+    let _lock;
     let (record, checkpoint, preloaded) = if resume {
         let text = std::fs::read_to_string(run.config())
             .with_context(|| format!("{}: no run to resume; train without --resume first", run.config().display()))?;
+        _lock = run.lock()?;
         let mut record: RunRecord = toml::from_str(&text)
             .with_context(|| format!("{}: not a run config; delete the run folder", run.config().display()))?;
         // A run keeps its settings: flags that would change them are refused, not ignored.
@@ -300,6 +303,13 @@ fn train(
         trainer::train::check_fits_in_memory(&config, dataset.views.len()).map_err(|e| anyhow::anyhow!("{e}"))?;
         let record = RunRecord { preset, scale, data, config, events_unit };
         std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the run folder", out.display()))?;
+        _lock = run.lock()?;
+        if run.config().exists() {
+            bail!(
+                "{}: a run was started there meanwhile; pass --resume to continue it or choose another --out",
+                out.display()
+            );
+        }
         simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
         (record, None, Some(dataset))
     };
@@ -360,6 +370,7 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
     let text = std::fs::read_to_string(run.config())
         .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
     let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
+    let _lock = run.lock()?; // it writes eval/ and metrics.json
     let dataset = load(&record.data, &record.config, false, record.events_unit)?;
     let method = Method::new(&record.config, dataset.views.len());
     let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;

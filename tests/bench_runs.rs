@@ -310,4 +310,13 @@ fn the_evbench_binary_lists_runs_tabulates_and_explains_mistakes() {
     assert!(e.contains("choose table1 or ablation"), "{e}");
     let e = fails(&["run", m, "--results", results, "--lpips-weights", "/nonexistent/lpips.bin"]);
     assert!(e.contains("/nonexistent/lpips.bin") && e.contains("export_lpips_weights.py"), "{e}");
+    // Cells that fail (a results folder that cannot be created) end with their errors, not
+    // with a complaint about the table they could not make.
+    let blocker = root().join("blocker");
+    std::fs::write(&blocker, b"a file").unwrap();
+    let nowhere = blocker.join("results");
+    let e = fails(&["run", m, "--results", nowhere.to_str().unwrap(), "--quiet"]);
+    let last = e.lines().last().unwrap_or_default();
+    assert!(e.contains("failed: ") && e.contains("blocker"), "{e}");
+    assert!(last.starts_with("no table: "), "the failures come first, then this note: {e}");
 }

@@ -231,6 +231,14 @@ fn evsim_events_input_errors_name_the_file_and_leave_no_output() {
     let e = err(&job(&frames, &ts, &out, SinkKind::DsecH5));
     assert!(e.contains("frame_003.png") && e.contains("same size"), "{e}");
 
+    // A 16-bit frame among 8-bit ones (the same size): another quantisation, refused by name.
+    let (w, h) = image::image_dimensions(frames.join("frame_000.png")).unwrap();
+    image::ImageBuffer::<image::Rgb<u16>, _>::from_pixel(w, h, image::Rgb([30000, 30000, 30000]))
+        .save(frames.join("frame_003.png"))
+        .unwrap();
+    let e = err(&job(&frames, &ts, &out, SinkKind::NerfH5));
+    assert!(e.contains("frame_003.png: is a 16-bit PNG") && e.contains("is a 8-bit PNG"), "{e}");
+
     // An unreadable frame.
     std::fs::write(frames.join("frame_003.png"), b"not a png").unwrap();
     let e = err(&job(&frames, &ts, &out, SinkKind::Npz));

@@ -184,6 +184,15 @@ impl TrainConfig {
                 return Err(format!("{name} = {v}; it must be a finite number >= 0"));
             }
         }
+        if let Some(b) = &m.bounds {
+            let ok = (0..3).all(|i| b.min[i].is_finite() && b.max[i].is_finite() && b.min[i] < b.max[i]);
+            if !ok {
+                return Err(format!(
+                    "model.bounds = {{ min = {:?}, max = {:?} }}; each min must be below its max, all finite (or drop it to fit the box to the cameras)",
+                    b.min, b.max
+                ));
+            }
+        }
         for (name, b) in
             [("adam.beta1", self.adam.beta1), ("adam.beta2", self.adam.beta2), ("adam.decay", self.adam.decay)]
         {
@@ -379,6 +388,8 @@ mod tests {
             (&["events.saturation=0"][..], "events.saturation = 0"),
             (&["events.saturation=nan"][..], "events.saturation = NaN"),
             (&["batch_rays"][..], "KEY=VALUE"),
+            (&["model.bounds={min=[0.0, 0.0, 0.0], max=[1.0, -1.0, 1.0]}"][..], "each min must be below its max"),
+            (&["model.bounds={min=[0.0, 0.0, 0.0], max=[1.0, 1.0, nan]}"][..], "model.bounds"),
         ] {
             let err = sets(bad).unwrap_err();
             assert!(err.contains(says), "{bad:?}: {err}");

@@ -3,7 +3,7 @@
 //!
 //! ```toml
 //! scale = "cpu"                    # cpu | paper: the presets' scale
-//! iterations = 400                 # optional: every cell's training iterations
+//! iterations = 400                 # optional: every cell's training iterations (a `set` wins)
 //! seeds = [0]                      # training seeds; one cell per method x scene x seed
 //! results = "runs/quick"           # optional: results folder (relative to the working dir)
 //! set = ["eval_every=0"]           # optional: overrides for every method (evtrain --set)
@@ -41,7 +41,8 @@ use trainer::presets::Scale;
 pub struct MatrixConfig {
     /// The presets' scale: `cpu` (sized for 2 cores) or `paper` (the reference settings).
     pub scale: Scale,
-    /// Training iterations of every cell (count); default: each preset's at this scale.
+    /// Training iterations of every cell (count); default: each preset's at this scale. A
+    /// `set = ["iterations=N"]` (the matrix's or a method's) wins over it.
     #[serde(default)]
     pub iterations: Option<u64>,
     /// Training seeds (initialisation, batches, noise); each method x scene runs once per seed.

@@ -217,13 +217,17 @@ fn resolve_methods(file: &Path, cfg: &MatrixConfig) -> Result<Vec<MethodPlan>, B
                 format!("`{name}` is also methods[{j}]'s name; give each method its own name"),
             ));
         }
-        let set: Vec<String> = cfg.set.iter().chain(&m.set).cloned().collect();
-        let mut config = apply_overrides(&(preset.build)(cfg.scale), &set)
-            .map_err(|e| bad(format!("methods[{i}].set"), format!("{e} (preset {})", preset.name)))?;
+        // the more specific wins: the preset, the matrix's iterations, its set, the method's set
+        let mut base = (preset.build)(cfg.scale);
         if let Some(n) = cfg.iterations {
-            config.iterations = n;
-            config.validate().map_err(|e| bad("iterations".into(), format!("{e} (methods[{i}])")))?;
+            base.iterations = n;
+            base.validate().map_err(|e| bad("iterations".into(), format!("{e} (methods[{i}])")))?;
         }
+        let base = apply_overrides(&base, &cfg.set)
+            .map_err(|e| bad("set".into(), format!("{e} (preset {} of methods[{i}])", preset.name)))?;
+        let config = apply_overrides(&base, &m.set)
+            .map_err(|e| bad(format!("methods[{i}].set"), format!("{e} (preset {})", preset.name)))?;
+        let set: Vec<String> = cfg.set.iter().chain(&m.set).cloned().collect();
         out.push(MethodPlan { name, preset, set, switches: m.set.clone(), config });
     }
     Ok(out)

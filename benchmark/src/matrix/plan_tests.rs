@@ -125,6 +125,25 @@ fn mistakes_name_the_file_the_field_and_the_fix() {
     }
     let e = MatrixPlan::load(&d.join("absent.toml"), None).unwrap_err().to_string();
     assert!(e.contains("absent.toml: file: cannot read"), "{e}");
+    // a mistake in the matrix's own `set` is reported there, not in the first method's
+    let e = error(&d, &format!("scale = \"cpu\"\nset = [\"events.colur=true\"]\n{nerf}{scene}"));
+    assert!(e.contains("matrix.toml: set: ") && !e.contains("methods[0].set"), "{e}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn the_more_specific_iterations_win() {
+    let d = dir("iterations");
+    let text = format!(
+        "scale = \"cpu\"\niterations = 20\n[[methods]]\npreset = \"nerf\"\n[[methods]]\npreset = \"e-nerf\"\nname = \"long\"\nset = [\"iterations=50\"]\n[[scenes]]\nscene = \"{}\"\n",
+        tiny().display()
+    );
+    let plan = load(&d, &text).unwrap();
+    let its: Vec<u64> = plan.methods.iter().map(|m| m.config.iterations).collect();
+    assert_eq!(its, [20, 50], "the matrix's iterations, then a method's own set");
+    let top = text.replace("iterations = 20\n", "iterations = 20\nset = [\"iterations=30\"]\n");
+    let its: Vec<u64> = load(&d, &top).unwrap().methods.iter().map(|m| m.config.iterations).collect();
+    assert_eq!(its, [30, 50]);
     std::fs::remove_dir_all(&d).unwrap();
 }
 

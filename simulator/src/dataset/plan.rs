@@ -463,6 +463,12 @@ fn validate(d: &DatasetConfig, ev: &EventConfig, file: &Path) -> Result<(), Data
     if d.spp_max > 4096 {
         return bad("dataset.spp_max", format!("{} must be at most 4096 samples per pixel (0 = off)", d.spp_max));
     }
+    if d.spp_max != 0 && d.spp_max < d.spp {
+        return bad(
+            "dataset.spp_max",
+            format!("{} is below spp = {}; the adaptive budget must be at least spp (or 0 = off)", d.spp_max, d.spp),
+        );
+    }
     if !(d.adaptive_variance > 0.0 && d.adaptive_variance.is_finite()) {
         return bad(
             "dataset.adaptive_variance",

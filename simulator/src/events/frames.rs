@@ -7,8 +7,8 @@
 //! nanoseconds, converted to integer nanoseconds (rounded to nearest).
 //!
 //! Everything that can be checked before the first event is (frame list, timestamp count and
-//! order, the config, the output type); a frame that fails later (unreadable, another size)
-//! stops the run and, the writer being atomic, leaves no output file.
+//! order, the config, the output type); a frame that fails later (unreadable, another size,
+//! another format or bit depth than the first) stops the run and, the writer being atomic, leaves no output file.
 //!
 //! With [`FramesJob::viz`] set, the events also go (through a [`Tee`]) to a [`VizSink`]: one PNG
 //! per time window and an event-rate table, whose summary is [`FramesSummary::viz`].
@@ -151,19 +151,35 @@ pub fn read_timestamps(path: &Path, unit: TimeUnit) -> Result<Vec<i64>> {
 
 /// Read one frame as linear RGB (PNG decoded from sRGB unless `linear_input`).
 pub fn read_frame(path: &Path, linear_input: bool) -> Result<Image> {
+    read_frame_kind(path, linear_input).map(|(img, _)| img)
+}
+
+/// What a frame file stores: `"EXR"`, or `"<n>-bit PNG"`.
+fn frame_kind(bits: u16) -> String {
+    if bits == 0 {
+        "EXR".to_string()
+    } else {
+        format!("{bits}-bit PNG")
+    }
+}
+
+/// [`read_frame`], also returning the bits per channel of a PNG (0 for EXR).
+fn read_frame_kind(path: &Path, linear_input: bool) -> Result<(Image, u16)> {
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     if ext.as_deref() == Some("exr") {
-        return crate::image_io::read_exr(path);
+        return crate::image_io::read_exr(path).map(|img| (img, 0));
     }
-    let rgb = image::open(path)
-        .with_context(|| format!("{}: cannot read as a PNG image; replace or remove the file", path.display()))?
-        .into_rgb32f();
+    let decoded = image::open(path)
+        .with_context(|| format!("{}: cannot read as a PNG image; replace or remove the file", path.display()))?;
+    let color = decoded.color();
+    let bits = color.bits_per_pixel() / u16::from(color.channel_count());
+    let rgb = decoded.into_rgb32f();
     let mut img = Image::new(rgb.width(), rgb.height());
     let decode = |v: f32| if linear_input { v } else { srgb_to_linear(v) };
     for (dst, src) in img.pixels.iter_mut().zip(rgb.pixels()) {
         *dst = glam::Vec3::new(decode(src.0[0]), decode(src.0[1]), decode(src.0[2]));
     }
-    Ok(img)
+    Ok((img, bits))
 }
 
 /// Run the event model over the frames of `job` and write the event file; `progress` (if any)
@@ -185,7 +201,7 @@ pub fn run_on_frames(job: &FramesJob, progress: Option<&ProgressBar>) -> Result<
     if let Some(viz) = &job.viz {
         viz.validate()?;
     }
-    let first = read_frame(&frames[0], job.linear_input)?;
+    let (first, first_bits) = read_frame_kind(&frames[0], job.linear_input)?;
     let (width, height) = (first.width, first.height);
     let mut sim = EventSimulator::new(job.config.clone(), width, height)?;
     let mut sink = EventWriter::create(&job.out, job.kind)?;
@@ -199,7 +215,21 @@ pub fn run_on_frames(job: &FramesJob, progress: Option<&ProgressBar>) -> Result<
     for (path, &t_ns) in frames.iter().zip(&times) {
         let img = match frame.take() {
             Some(img) => img,
-            None => read_frame(path, job.linear_input)?,
+            None => {
+                let (img, bits) = read_frame_kind(path, job.linear_input)?;
+                // another depth or format quantises the scene differently: events at every pixel
+                if bits != first_bits {
+                    bail!(
+                        "{}: is a {} but {} is a {}; every frame must have the same format and bit depth \
+                         (re-export the sequence in one)",
+                        path.display(),
+                        frame_kind(bits),
+                        frames[0].display(),
+                        frame_kind(first_bits)
+                    );
+                }
+                img
+            }
         };
         if (img.width, img.height) != (width, height) {
             bail!(

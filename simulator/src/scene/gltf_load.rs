@@ -68,6 +68,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     // message rather than the crate's generic validation error
     let gltf = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| parse_error(path, e))?;
     let mut warnings = Vec::new();
+    check_version(path, gltf.document.as_json())?;
     check_extensions(path, gltf.document.as_json(), &mut warnings)?;
     check_position_accessors(path, gltf.document.as_json())?;
     let blob = gltf.blob;
@@ -123,6 +124,26 @@ fn parse_error(path: &Path, e: gltf::Error) -> SceneError {
         }
         e => SceneError::invalid(path, "glTF", e.to_string()),
     }
+}
+
+/// Reject files of another major glTF version than 2 (`asset.version`, and `asset.minVersion`
+/// when given): glTF 1.0 files parse as JSON but mean other things.
+fn check_version(path: &Path, root: &gltf::json::Root) -> Result<(), SceneError> {
+    let asset = &root.asset;
+    let major = |v: &str| v.split('.').next().and_then(|m| m.parse::<u32>().ok());
+    for (field, v) in
+        [("asset.version", Some(asset.version.as_str())), ("asset.minVersion", asset.min_version.as_deref())]
+    {
+        let Some(v) = v else { continue };
+        if major(v) != Some(2) {
+            return Err(SceneError::unsupported(
+                path,
+                field,
+                format!("\"{v}\": only glTF 2.x files are read; re-export the scene as glTF 2.0"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Reject required extensions we do not implement; warn about used ones we ignore.
@@ -306,7 +327,7 @@ impl Walker<'_, '_> {
             self.flat.scene.lights.push(l);
         }
         if let Some(camera) = node.camera() {
-            self.camera(&camera, &el, world);
+            self.camera(&camera, &el, world)?;
         }
         self.on_path[node.index()] = true;
         for child in node.children() {
@@ -317,10 +338,17 @@ impl Walker<'_, '_> {
     }
 
     /// A perspective camera with the rigid part of the node transform; orthographic is skipped.
-    fn camera(&mut self, camera: &gltf::Camera, node_el: &str, world: Mat4) {
+    fn camera(&mut self, camera: &gltf::Camera, node_el: &str, world: Mat4) -> Result<(), SceneError> {
         let el = label("camera", camera.index(), camera.name());
         match camera.projection() {
             gltf::camera::Projection::Perspective(p) => {
+                if !(p.yfov() > 0.0 && p.yfov() < std::f32::consts::PI) {
+                    return Err(SceneError::invalid(
+                        self.path,
+                        format!("{el} perspective.yfov"),
+                        format!("{} is not a field of view; give the vertical angle in radians, in (0, pi)", p.yfov()),
+                    ));
+                }
                 // strip scale (and shear): keep rotation and translation only
                 let (_, rotation, translation) = world.to_scale_rotation_translation();
                 let name = camera.name().map(str::to_string).unwrap_or_else(|| el.clone());
@@ -332,6 +360,7 @@ impl Walker<'_, '_> {
                 self.path.display()
             )),
         }
+        Ok(())
     }
 }
 
@@ -470,6 +499,38 @@ mod tests {
         assert_close(c.to_world.transform_vector3(Vec3::Y), Vec3::Y);
         assert_eq!(s.warnings.len(), 1);
         assert!(s.warnings[0].contains("orthographic") && s.warnings[0].contains("camera 1"), "{:?}", s.warnings);
+    }
+
+    #[test]
+    fn a_camera_without_a_field_of_view_is_invalid() {
+        let dir = temp_dir("yfov");
+        for yfov in ["0", "-0.5", "3.5"] {
+            let mut d = doc_with_triangle();
+            d.extra
+                .push(format!(r#""cameras":[{{"type":"perspective","perspective":{{"yfov":{yfov},"znear":0.1}}}}]"#));
+            d.node(r#"{"camera":0}"#);
+            let e = load(&d.write_embedded(&dir, "cam")).unwrap_err();
+            let msg = e.to_string();
+            assert!(matches!(e, SceneError::Invalid { .. }), "{msg}");
+            assert!(msg.contains("camera 0 perspective.yfov") && msg.contains("radians"), "{msg}");
+        }
+    }
+
+    #[test]
+    fn a_gltf_1_file_is_unsupported() {
+        let dir = temp_dir("v1");
+        let d = doc_with_triangle();
+        let text = d.json(None);
+        assert!(text.contains(r#""version":"2.0""#));
+        for (from, to) in [
+            (r#""version":"2.0""#, r#""version":"1.0""#),
+            (r#""version":"2.0""#, r#""version":"2.0","minVersion":"3.0""#),
+        ] {
+            let path = fixture::write(&dir, "old.gltf", text.replace(from, to).as_bytes());
+            let e = load(&path).unwrap_err();
+            let msg = e.to_string();
+            assert!(matches!(e, SceneError::Unsupported { .. }) && msg.contains("glTF 2.0"), "{msg}");
+        }
     }
 
     #[test]

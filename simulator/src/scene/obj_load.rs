@@ -88,7 +88,20 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                 rec.error = Some(format!("cannot read {} ({e})", full.display()));
                 Err(tobj::LoadError::OpenFileFailed)
             }
-            Ok(b) => tobj::load_mtl_buf(&mut Cursor::new(b)),
+            Ok(b) => match std::str::from_utf8(&b) {
+                Err(e) => {
+                    rec.error = Some(format!("{} is not a text MTL file ({e})", full.display()));
+                    Err(tobj::LoadError::ReadError)
+                }
+                Ok(text) => {
+                    let result = tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes()));
+                    let content = text.lines().any(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+                    if matches!(&result, Ok((m, _)) if m.is_empty()) && content {
+                        rec.error = Some(format!("{} defines no material (no `newmtl` line)", full.display()));
+                    }
+                    result
+                }
+            },
         };
         match &result {
             Ok((mats, _)) => rec.materials = mats.clone(),
@@ -337,8 +350,20 @@ fn scan_text(path: &Path, text: &str) -> Result<TextScan, SceneError> {
     let mut object = String::from("(unnamed)");
     let mut v_index = 0usize;
     let mut usemtl: Vec<String> = Vec::new();
+    // positive references may point past the line (some exporters write faces first); negative
+    // ones count back from it
+    let total = |key: &str| text.lines().filter(|l| l.split_whitespace().next() == Some(key)).count();
+    let totals = [total("v"), total("vt"), total("vn")];
+    let mut seen = [0usize; 3];
     for (line_no, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
+        let key = words.clone().next();
+        if let Some(k) = ["v", "vt", "vn"].iter().position(|k| Some(*k) == key) {
+            seen[k] += 1;
+        }
+        if key == Some("f") {
+            check_face_refs(path, &object, line_no + 1, line, totals, seen)?;
+        }
         match words.next() {
             Some("o") | Some("g") => object = words.collect::<Vec<_>>().join(" "),
             Some("v") => {
@@ -362,6 +387,46 @@ fn scan_text(path: &Path, text: &str) -> Result<TextScan, SceneError> {
         }
     }
     Ok(TextScan { usemtl })
+}
+
+/// Check that every `v/vt/vn` reference of the face on `line` names an element of the file:
+/// 1-based up to the file's count, or negative back from the `seen` elements before the line.
+fn check_face_refs(
+    path: &Path,
+    object: &str,
+    line_no: usize,
+    line: &str,
+    totals: [usize; 3],
+    seen: [usize; 3],
+) -> Result<(), SceneError> {
+    const KIND: [&str; 3] = ["v", "vt", "vn"];
+    for vertex in line.split_whitespace().skip(1) {
+        for (k, part) in vertex.split('/').enumerate().take(3) {
+            if part.is_empty() {
+                continue; // `v//vn`, or no reference (tobj reports the malformed ones)
+            }
+            let Ok(i) = part.parse::<i64>() else { continue };
+            let ok = match i {
+                0 => false,
+                i if i > 0 => i as usize <= totals[k],
+                i => i.unsigned_abs() as usize <= seen[k],
+            };
+            if !ok {
+                let have = if i < 0 { seen[k] } else { totals[k] };
+                return Err(SceneError::invalid(
+                    path,
+                    format!("object \"{object}\" face (line {line_no})"),
+                    format!(
+                        "`{vertex}` refers to {} {i}, but the file has {have} {} lines{}; fix the face or re-export the OBJ",
+                        KIND[k],
+                        KIND[k],
+                        if i < 0 { " before it" } else { "" }
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Bisect for the first line at which the file no longer parses (tobj reports no line numbers).
@@ -578,7 +643,30 @@ map_Pr rough.png
         assert!(e.contains("no (non-degenerate) triangles"), "{e}");
 
         let obj = write(&dir, "oob.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
-        assert!(load(&obj).is_err());
+        let e = msg(load(&obj));
+        assert!(e.contains("face (line 4)") && e.contains("refers to v 9") && e.contains("3 v lines"), "{e}");
+        let obj = write(&dir, "vt.obj", "o Tri\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/99 2/99 3/99\n");
+        let e = msg(load(&obj));
+        assert!(e.contains("object \"Tri\" face (line 5)") && e.contains("`1/99` refers to vt 99"), "{e}");
+        let obj = write(&dir, "vn.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//-2\n");
+        let e = msg(load(&obj));
+        assert!(e.contains("refers to vn -2") && e.contains("1 vn lines before it"), "{e}");
+        // relative references and a face before its vertices are fine
+        let obj = write(&dir, "rel.obj", "f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/-1 -2/-1 -1/-1\n");
+        assert_eq!(load(&obj).unwrap().mesh.indices.len(), 2);
+
+        // an MTL that is not one (binary, or text without a material) is an error, not a scene
+        // without its materials and lights
+        std::fs::write(dir.join("bin.mtl"), [0xffu8, 0xfe, 0x00, 0x9c, 0x80]).unwrap();
+        std::fs::write(dir.join("junk.mtl"), "this is not a material library\n").unwrap();
+        for mtl in ["bin.mtl", "junk.mtl"] {
+            let obj = write(&dir, "m.obj", &format!("mtllib {mtl}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"));
+            let e = msg(load(&obj));
+            assert!(
+                e.contains(&format!("mtllib {mtl}")) && (e.contains("not a text MTL") || e.contains("no `newmtl`")),
+                "{e}"
+            );
+        }
     }
 
     #[test]

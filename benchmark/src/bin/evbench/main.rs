@@ -102,8 +102,14 @@ fn main() -> Result<()> {
             let stop = ctrl_c()?;
             let opts = run_options(&run, &stop, None);
             let code = run_matrix(&plan, &opts)?;
-            // The table of this matrix's finished cells (all shards' so far).
-            write_table(&plan.results, Form::Table1, Some(&Selection::of(&plan)), None)?;
+            // The table of this matrix's finished cells (all shards' so far). After a failure
+            // there may be none: the failures above are the news, not the missing table.
+            if let Err(e) = write_table(&plan.results, Form::Table1, Some(&Selection::of(&plan)), None) {
+                if code == 0 {
+                    return Err(e);
+                }
+                eprintln!("no table: {e:#}");
+            }
             std::process::exit(code);
         }
         Cmd::Sweep { config, data_only, report, run } => {

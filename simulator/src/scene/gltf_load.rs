@@ -23,9 +23,10 @@
 //!   Images come from a relative URI, a data URI or a bufferView, PNG or JPEG; sampler wrap modes
 //!   map to [`WrapMode`](super::WrapMode).
 //! - **Lights** (`KHR_lights_punctual`): point, spot and directional, placed by their node's world
-//!   transform; lights point down their local -Z. `color * intensity` is read as radiometric
-//!   (W/sr for point and spot, W/m^2 for directional; no 683 lm/W conversion, see
-//!   [`PunctualLight`]).
+//!   transform; lights point down their local -Z. `color * intensity` is photometric (candela
+//!   for point and spot, lux for directional) and divided by
+//!   [`LUMENS_PER_WATT`](super::LUMENS_PER_WATT) (683 lm/W, Blender's convention) into our
+//!   radiometric W/sr and W/m^2 (see [`PunctualLight`]).
 //! - **Cameras**: perspective cameras become a [`Camera`] with `yfov` and the
 //!   node's world transform with its scale removed (rigid only; a mirror is dropped too).
 //!
@@ -372,7 +373,8 @@ fn punctual_light(
 ) -> Result<PunctualLight, SceneError> {
     use gltf::khr_lights_punctual::Kind;
     let el = label("light", light.index(), light.name());
-    let power = Vec3::from(light.color()) * light.intensity();
+    // photometric in the file, radiometric here
+    let power = Vec3::from(light.color()) * (light.intensity() / super::LUMENS_PER_WATT);
     if !power.is_finite() || power.min_element() < 0.0 {
         return Err(SceneError::invalid(path, el, "color and intensity must be finite and non-negative"));
     }
@@ -455,7 +457,7 @@ mod tests {
         match &s.lights[0] {
             PunctualLight::Point { position, intensity } => {
                 assert_close(*position, Vec3::new(1.0, 2.0, 3.0));
-                assert_close(*intensity, Vec3::new(8.0, 4.0, 2.0));
+                assert_close(*intensity * 683.0, Vec3::new(8.0, 4.0, 2.0));
             }
             l => panic!("expected a point light, got {l:?}"),
         }
@@ -463,7 +465,7 @@ mod tests {
             PunctualLight::Spot { position, direction, intensity, inner_cone, outer_cone } => {
                 assert_close(*position, Vec3::new(0.0, 0.0, 4.0));
                 assert_close(*direction, Vec3::Y);
-                assert_close(*intensity, Vec3::splat(2.0));
+                assert_close(*intensity * 683.0, Vec3::splat(2.0));
                 assert_eq!((*inner_cone, *outer_cone), (0.2, 0.5));
             }
             l => panic!("expected a spot light, got {l:?}"),
@@ -471,7 +473,7 @@ mod tests {
         match &s.lights[2] {
             PunctualLight::Directional { direction, irradiance } => {
                 assert_close(*direction, Vec3::Z);
-                assert_close(*irradiance, Vec3::new(0.0, 3.0, 0.0));
+                assert_close(*irradiance * 683.0, Vec3::new(0.0, 3.0, 0.0));
             }
             l => panic!("expected a directional light, got {l:?}"),
         }

@@ -158,10 +158,18 @@ impl Material {
     }
 }
 
-/// A light with no area (from `KHR_lights_punctual`). Units: we read the glTF intensity as a
-/// radiometric quantity in our linear RGB units (no 683 lm/W conversion): point and spot lights
-/// have radiant intensity `color * intensity` (W/sr), directional lights irradiance
-/// `color * intensity` (W/m^2) on a surface facing them.
+/// Luminous efficacy (lm/W) between the photometric intensities of `KHR_lights_punctual`
+/// (candela for point and spot lights, lux for directional ones) and our radiometric ones: the
+/// convention of Blender's glTF exporter and importer (lighting mode "Standard"), so that a
+/// scene exported from Blender renders as Cycles renders it: a Blender point light of `P` W
+/// becomes `P / (4 pi) * 683` cd in the file and `P / (4 pi)` W/sr here; a sun of `S` W/m^2
+/// becomes `683 S` lux and `S` W/m^2.
+pub const LUMENS_PER_WATT: f32 = 683.0;
+
+/// A light with no area (from `KHR_lights_punctual`), in radiometric units: point and spot
+/// lights have a radiant intensity (W/sr), directional lights an irradiance (W/m^2) on a
+/// surface facing them, per linear RGB channel. The glTF file holds photometric values
+/// (candela, lux), converted at [`LUMENS_PER_WATT`] both ways, as Blender does.
 #[derive(Clone, Debug, PartialEq)]
 pub enum PunctualLight {
     /// Radiates equally in all directions from `position`.

@@ -14,8 +14,10 @@
 //! - textures as 8-bit PNG files under `textures/`, one sampler per wrap mode (linear filters).
 //! - an optional perspective camera on its own node (matrix = camera-to-world).
 //! - punctual lights ([`PunctualLight`], `KHR_lights_punctual`), each on a node whose local -Z
-//!   is the light's direction; `color * intensity` is the radiometric power our loader reads back
-//!   (the colour is normalised to a largest channel of 1, the rest goes into the intensity).
+//!   is the light's direction; `color * intensity` is photometric (candela, lux: the radiometric
+//!   value times [`LUMENS_PER_WATT`]), chosen so that our loader reads back the very same `f32`
+//!   radiometric values (the colour is normalised to a largest channel of 1, the rest goes into
+//!   the intensity).
 //!
 //! The loader decodes only textures that a material uses (a texture used in both a colour and a
 //! data slot is decoded twice), so unused textures are written but not loaded.
@@ -32,7 +34,7 @@ use glam::{Mat4, Quat, Vec2, Vec3};
 use serde_json::{json, Map, Value};
 
 use crate::image_io::write_atomic;
-use crate::scene::{PunctualLight, WrapMode};
+use crate::scene::{PunctualLight, WrapMode, LUMENS_PER_WATT};
 
 /// Index of a mesh in a [`SceneBuilder`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -536,12 +538,26 @@ fn num(x: f32) -> Value {
     json!(shortest)
 }
 
+/// The photometric intensity (cd or lux) the loader turns back into `radiometric`: an `f32` `x`
+/// with `x / LUMENS_PER_WATT == radiometric` when there is one near the product (as for every
+/// committed scene's lights), else the nearest `f32` to the product (read back within an ulp:
+/// not every `f32` is such a quotient).
+fn photometric(radiometric: f32) -> f32 {
+    let x = (f64::from(radiometric) * f64::from(LUMENS_PER_WATT)) as f32;
+    let mut candidates = [x; 9];
+    for i in 1..=4 {
+        candidates[2 * i - 1] = (0..i).fold(x, |v, _| v.next_up());
+        candidates[2 * i] = (0..i).fold(x, |v, _| v.next_down());
+    }
+    candidates.into_iter().find(|c| c / LUMENS_PER_WATT == radiometric).unwrap_or(x)
+}
+
 /// A light's `KHR_lights_punctual` entry, its node position and direction.
 fn light_json(l: &PunctualLight) -> (Value, Vec3, Vec3) {
     let entry = |kind: &str, power: Vec3| {
         let peak = power.max_element();
         let color = if peak > 0.0 { power / peak } else { Vec3::ONE };
-        json!({"type": kind, "color": color.to_array().map(num), "intensity": num(peak)})
+        json!({"type": kind, "color": color.to_array().map(num), "intensity": num(photometric(peak))})
     };
     match *l {
         PunctualLight::Point { position, intensity } => (entry("point", intensity), position, Vec3::NEG_Z),
@@ -793,5 +809,29 @@ pub(crate) mod tests {
         assert!(e.contains("mesh 0 \"box\""), "{e}");
         let e = SceneBuilder::new().validate().unwrap_err().to_string();
         assert!(e.contains("no triangles"), "{e}");
+    }
+
+    #[test]
+    fn photometric_intensities_read_back_to_the_same_radiometric_bits() {
+        // the committed scenes' lights come back bit for bit (so their dataset keys stay)
+        for v in [2.4f32, 3.0, 2.2, 1.0, 8.0, 0.5] {
+            assert_eq!(photometric(v) / LUMENS_PER_WATT, v, "{v}");
+        }
+        // any power within an ulp: small, large, awkward mantissas
+        let (mut x, mut n, mut exact) = (1.0e-3f32, 0, 0);
+        while x < 1.0e5 {
+            for v in [x, x * 1.1, x * std::f32::consts::PI, x.next_up()] {
+                let p = photometric(v);
+                let back = p / LUMENS_PER_WATT;
+                assert!(back == v || back == v.next_up() || back == v.next_down(), "{v} -> {p} -> {back}");
+                exact += usize::from(back == v);
+                // through the JSON number the loader parses
+                let json: f32 = serde_json::from_value(num(p)).unwrap();
+                assert_eq!(json, p, "{p} does not survive JSON");
+                n += 1;
+            }
+            x *= 1.37;
+        }
+        assert!(n > 100 && exact * 10 > n * 8, "{exact} of {n} exact");
     }
 }

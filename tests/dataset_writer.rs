@@ -55,25 +55,32 @@ fn opts(out: &Path, cache: Option<PathBuf>) -> RunOptions {
     RunOptions { out: out.to_path_buf(), frames_cache: cache, ..RunOptions::default() }
 }
 
-/// Every file under `dir` (relative path, bytes), sorted, hidden entries skipped.
-fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut out = Vec::new();
+/// The entries under `dir` outside hidden folders, as paths relative to `dir`, sorted: the
+/// files, and the hidden files and folders (not entered).
+fn walk(dir: &Path) -> (Vec<PathBuf>, Vec<PathBuf>) {
+    let (mut files, mut hidden) = (Vec::new(), Vec::new());
     let mut stack = vec![dir.to_path_buf()];
     while let Some(d) = stack.pop() {
         for e in std::fs::read_dir(&d).unwrap() {
             let p = e.unwrap().path();
+            let rel = p.strip_prefix(dir).unwrap().to_path_buf();
             if p.file_name().unwrap().to_string_lossy().starts_with('.') {
-                continue;
-            }
-            if p.is_dir() {
+                hidden.push(rel);
+            } else if p.is_dir() {
                 stack.push(p);
             } else {
-                out.push((p.strip_prefix(dir).unwrap().display().to_string(), std::fs::read(&p).unwrap()));
+                files.push(rel);
             }
         }
     }
-    out.sort();
-    out
+    files.sort();
+    hidden.sort();
+    (files, hidden)
+}
+
+/// Every file under `dir` (relative path, bytes), sorted, hidden entries skipped.
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    walk(dir).0.into_iter().map(|f| (f.display().to_string(), std::fs::read(dir.join(&f)).unwrap())).collect()
 }
 
 fn assert_same_files(a: &Path, b: &Path) {
@@ -256,20 +263,7 @@ fn resumes_to_the_same_bytes(shading: Shading) {
 
 /// The hidden files and folders under `dir` (relative paths), sorted.
 fn hidden_entries(dir: &Path) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.file_name().unwrap().to_string_lossy().starts_with('.') {
-                out.push(p.strip_prefix(dir).unwrap().display().to_string());
-            } else if p.is_dir() {
-                stack.push(p);
-            }
-        }
-    }
-    out.sort();
-    out
+    walk(dir).1.iter().map(|p| p.display().to_string()).collect()
 }
 
 #[test]

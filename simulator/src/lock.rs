@@ -118,13 +118,15 @@ pub fn is_temp_name(name: &str) -> bool {
     }
 }
 
-/// Remove the temporary files (see [`is_temp_name`]) in `dir` and its subfolders, as left by
-/// a killed writer; returns what was removed. Call it only while holding `dir`'s lock: a live
-/// writer's temporary files look the same. A missing `dir` has nothing to remove.
-pub fn remove_stale_temps(dir: &Path) -> io::Result<Vec<PathBuf>> {
+/// Remove the temporary files (see [`is_temp_name`]) in `dir` and its subfolders down to
+/// `depth` levels (0: `dir` only), as left by a killed writer; returns what was removed. Call it
+/// only while holding `dir`'s lock: a live writer's temporary files look the same. The depth
+/// keeps it to the folders our writers write (an `--out` given as a big folder is not searched
+/// through). A missing `dir` has nothing to remove.
+pub fn remove_stale_temps(dir: &Path, depth: usize) -> io::Result<Vec<PathBuf>> {
     let mut removed = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
+    let mut stack = vec![(dir.to_path_buf(), 0)];
+    while let Some((d, level)) = stack.pop() {
         let entries = match std::fs::read_dir(&d) {
             Ok(e) => e,
             Err(e) if e.kind() == io::ErrorKind::NotFound => continue,
@@ -134,7 +136,9 @@ pub fn remove_stale_temps(dir: &Path) -> io::Result<Vec<PathBuf>> {
             let entry = entry?;
             let kind = entry.file_type()?;
             if kind.is_dir() {
-                stack.push(entry.path());
+                if level < depth {
+                    stack.push((entry.path(), level + 1));
+                }
             } else if kind.is_file() && is_temp_name(&entry.file_name().to_string_lossy()) {
                 std::fs::remove_file(entry.path()).map_err(|e| {
                     io::Error::new(
@@ -205,14 +209,18 @@ mod tests {
             assert!(!is_temp_name(name), "{name}");
         }
         let dir = temp_dir("temps");
-        std::fs::create_dir_all(dir.join("images_1")).unwrap();
-        for f in [".events.h5.tmp77", "images_1/.00.png.tmp77", "events.h5", "images_1/00.png"] {
+        std::fs::create_dir_all(dir.join("images_1/deeper")).unwrap();
+        let files =
+            [".events.h5.tmp77", "images_1/.00.png.tmp77", "images_1/deeper/.x.tmp77", "events.h5", "images_1/00.png"];
+        for f in files {
             std::fs::write(dir.join(f), "x").unwrap();
         }
-        let removed = remove_stale_temps(&dir).unwrap();
+        let removed = remove_stale_temps(&dir, 1).unwrap();
         assert_eq!(removed, vec![dir.join(".events.h5.tmp77"), dir.join("images_1/.00.png.tmp77")]);
         assert!(dir.join("events.h5").is_file() && dir.join("images_1/00.png").is_file());
-        assert!(remove_stale_temps(&dir.join("absent")).unwrap().is_empty());
+        assert!(dir.join("images_1/deeper/.x.tmp77").is_file(), "below the depth: left alone");
+        assert_eq!(remove_stale_temps(&dir, 2).unwrap(), vec![dir.join("images_1/deeper/.x.tmp77")]);
+        assert!(remove_stale_temps(&dir.join("absent"), 3).unwrap().is_empty());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -179,7 +179,7 @@ impl RunPaths {
                 TrainError::io(&path, source, "check that the run folder exists and is writable")
             }
         })?;
-        simulator::lock::remove_stale_temps(&self.dir)
+        simulator::lock::remove_stale_temps(&self.dir, 1) // the run folder and eval/
             .map_err(|e| TrainError::io(&self.dir, e, "remove the temporary files by hand"))?;
         Ok(lock)
     }

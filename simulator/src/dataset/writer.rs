@@ -230,7 +230,15 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
             DatasetError::io(&removing, "cannot remove this frame cache of a finished run; delete it", e)
         })?;
     }
-    crate::lock::remove_stale_temps(out).map_err(|e| DatasetError::io(out, "cannot clean up", e))?;
+    // the folder, images_1/, images_sharp_1/, and the default frame cache's
+    // <key>/<frames or sharp>/ folders
+    let clean = |dir: &Path, depth| {
+        crate::lock::remove_stale_temps(dir, depth).map_err(|e| DatasetError::io(dir, "cannot clean up", e))
+    };
+    clean(out, 1)?;
+    if opts.frames_cache.is_none() {
+        clean(&out.join(".frames"), 2)?;
+    }
     match manifest_hash(out) {
         Some(h) if h == plan.settings_hash && complete(out) => {
             return Ok(Summary { already_complete: true, frames: plan.clock.n_frames, ..Summary::default() })

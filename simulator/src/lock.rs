@@ -46,8 +46,8 @@ pub enum LockError {
 #[derive(Debug)]
 pub struct FolderLock {
     path: PathBuf,
-    // held open: closing it releases the lock
-    _file: Option<File>,
+    // held open: closing it releases the lock (`None` where the file system has no locks)
+    file: Option<File>,
 }
 
 impl FolderLock {
@@ -68,7 +68,7 @@ impl FolderLock {
                     return Err(LockError::Held { dir: dir.to_path_buf(), pid });
                 }
                 Err(TryLockError::Error(e)) if e.kind() == io::ErrorKind::Unsupported => {
-                    return Ok(FolderLock { path, _file: None });
+                    return Ok(FolderLock { path, file: None });
                 }
                 Err(TryLockError::Error(e)) => return Err(io_err(e)),
             }
@@ -78,7 +78,7 @@ impl FolderLock {
                 continue;
             }
             file.set_len(0).and_then(|()| write!(file, "{}", std::process::id())).map_err(io_err)?;
-            return Ok(FolderLock { path, _file: Some(file) });
+            return Ok(FolderLock { path, file: Some(file) });
         }
     }
 }
@@ -86,7 +86,7 @@ impl FolderLock {
 impl Drop for FolderLock {
     fn drop(&mut self) {
         // removed while still locked, so a waiting process that opened it starts over
-        if self._file.is_some() {
+        if self.file.is_some() {
             let _ = std::fs::remove_file(&self.path);
         }
     }
@@ -157,13 +157,7 @@ pub fn remove_stale_temps(dir: &Path, depth: usize) -> io::Result<Vec<PathBuf>> 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn temp_dir(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("evblur-lock-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
+    use crate::events::sinks::test_util::temp_dir;
 
     #[test]
     fn a_second_writer_is_refused_with_the_holders_pid_until_the_first_lets_go() {

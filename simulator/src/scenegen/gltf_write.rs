@@ -544,12 +544,14 @@ fn num(x: f32) -> Value {
 /// not every `f32` is such a quotient).
 fn photometric(radiometric: f32) -> f32 {
     let x = (f64::from(radiometric) * f64::from(LUMENS_PER_WATT)) as f32;
-    let mut candidates = [x; 9];
-    for i in 1..=4 {
-        candidates[2 * i - 1] = (0..i).fold(x, |v, _| v.next_up());
-        candidates[2 * i] = (0..i).fold(x, |v, _| v.next_down());
+    let (mut up, mut down) = (x, x);
+    for _ in 0..=4 {
+        if let Some(c) = [up, down].into_iter().find(|c| c / LUMENS_PER_WATT == radiometric) {
+            return c;
+        }
+        (up, down) = (up.next_up(), down.next_down());
     }
-    candidates.into_iter().find(|c| c / LUMENS_PER_WATT == radiometric).unwrap_or(x)
+    x
 }
 
 /// A light's `KHR_lights_punctual` entry, its node position and direction.

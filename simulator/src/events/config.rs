@@ -65,6 +65,17 @@ pub struct NoiseConfig {
     pub shot_noise_rate_hz: f32,
 }
 
+impl NoiseConfig {
+    /// True when every non-ideality is off (the ideal ESIM model).
+    pub fn is_off(&self) -> bool {
+        self.threshold_mismatch.is_none()
+            && self.refractory.is_none_or(|r| r.period_ns <= 0)
+            && self.photoreceptor.is_none()
+            && self.leak_rate_hz == 0.0
+            && self.shot_noise_rate_hz == 0.0
+    }
+}
+
 /// Threshold mismatch between pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -25,6 +25,20 @@ pub enum EventError {
         /// The frame's height.
         got_height: u32,
     },
+    /// A [`LogFrame`](super::LogFrame)'s per-pixel arrays do not hold `width * height` values.
+    #[error(
+        "log frame of {width}x{height} has {intensity} intensities and {log} log values; give width * height of each"
+    )]
+    FrameLength {
+        /// The frame's width.
+        width: u32,
+        /// The frame's height.
+        height: u32,
+        /// Intensities given.
+        intensity: usize,
+        /// Log values given.
+        log: usize,
+    },
     /// A frame's time is not after the previous frame's.
     #[error(
         "frame time {t_ns} ns is not after the previous frame time {prev_ns} ns; frame times must strictly increase"

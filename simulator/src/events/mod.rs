@@ -76,5 +76,5 @@ pub use config::{
 };
 pub use error::EventError;
 pub use frames::{run_on_frames, FramesJob, FramesSummary, TimeUnit};
-pub use model::{intensity, EventSimulator, FrameStats, LUMA_709};
+pub use model::{intensity, EventSimulator, FrameStats, LogFrame, LUMA_709};
 pub use sink::{CountingSink, Event, EventSink, Tee, VecSink};

@@ -421,3 +421,93 @@ fn radiance_above_one_reaches_the_model_unclamped() {
     assert_eq!(ev[2].len(), 12, "{:?}", ev[2]);
     assert!(ev[2].iter().all(|e| e.p < 0));
 }
+
+/// [`run`] through [`LogFrame`]s in batches of `batch` frames.
+fn run_batched(cfg: &EventConfig, frames: &[Image], times: &[i64], batch: usize) -> (Vec<Event>, Vec<FrameStats>) {
+    let mut sim = EventSimulator::new(cfg.clone(), frames[0].width, frames[0].height).unwrap();
+    let log: Vec<LogFrame> = frames.iter().map(|f| LogFrame::from_image(f, cfg).unwrap()).collect();
+    let mut sink = VecSink::default();
+    let mut stats = Vec::new();
+    for (f, t) in log.chunks(batch).zip(times.chunks(batch)) {
+        stats.extend(sim.step_log_batch(f, t, &mut sink).unwrap());
+    }
+    (sink.events, stats)
+}
+
+#[test]
+fn log_frames_in_batches_give_the_events_and_stats_of_single_steps() {
+    let (w, h) = (37u32, 23u32); // rows not a multiple of the chunk height
+    let frames = moving_pattern(w, h, 30, 9);
+    let times: Vec<i64> = (0..frames.len()).map(|k| ms(k) + (k as i64 * 7919) % 1000).collect();
+    let configs = [
+        EventConfig::default(),
+        EventConfig { sensor: Sensor::Rggb, c_pos: 0.15, c_neg: 0.25, ..EventConfig::default() },
+        noisy(RefractoryMode::FireLater, MismatchMode::Fixed),
+        noisy(RefractoryMode::Consume, MismatchMode::PerInterval),
+    ];
+    for cfg in configs {
+        // single steps on images: the reference
+        let mut sim = EventSimulator::new(cfg.clone(), w, h).unwrap();
+        let mut sink = VecSink::default();
+        let stats: Vec<FrameStats> =
+            frames.iter().zip(&times).map(|(f, &t)| sim.step(f, t, &mut sink).unwrap()).collect();
+        assert!(sink.events.len() > 100, "the pattern must fire: {}", sink.events.len());
+        for batch in [1, 4, 29, 64] {
+            let (events, batch_stats) = run_batched(&cfg, &frames, &times, batch);
+            assert_eq!(events, sink.events, "batch {batch}, {cfg:?}");
+            assert_eq!(batch_stats, stats, "batch {batch}, {cfg:?}");
+        }
+    }
+}
+
+#[test]
+fn the_ideal_pixel_loop_matches_the_general_one() {
+    // chunk_ideal is what step runs without non-idealities; chunk is the general loop
+    let (w, h) = (40u32, 8u32);
+    let frames = moving_pattern(w, h, 25, 4);
+    let cfg = EventConfig { c_pos: 0.11, c_neg: 0.13, ..EventConfig::default() };
+    let (mut a, mut b) =
+        (EventSimulator::new(cfg.clone(), w, h).unwrap(), EventSimulator::new(cfg.clone(), w, h).unwrap());
+    a.step(&frames[0], 0, &mut VecSink::default()).unwrap();
+    b.step(&frames[0], 0, &mut VecSink::default()).unwrap();
+    let n = w as usize * h as usize;
+    let mut fired = 0;
+    for (k, f) in frames.iter().enumerate().skip(1) {
+        let levels = ImageLevels { image: f, sensor: cfg.sensor, log_eps: cfg.log_eps };
+        let iv = Interval { cfg: &cfg, width: w as usize, t0: ms(k - 1), t1: ms(k), dt: 1e6, dt_s: 1e-3 };
+        let (mut ea, mut eb) = (Vec::new(), Vec::new());
+        let sa = iv.chunk_ideal(0, &mut a.pixels[..n], &mut a.noise[..n], &levels, &mut ea);
+        let sb = iv.chunk(0, &mut b.pixels[..n], &mut b.noise[..n], &levels, &mut eb);
+        assert_eq!(ea, eb, "frame {k}");
+        assert_eq!((sa.on, sa.off), (sb.on, sb.off));
+        assert_eq!(sa.max_change_c.to_bits(), sb.max_change_c.to_bits(), "frame {k}");
+        for (p, q) in a.pixels.iter().zip(&b.pixels) {
+            assert_eq!((p.ref_l.to_bits(), p.l.to_bits()), (q.ref_l.to_bits(), q.l.to_bits()));
+        }
+        fired += ea.len();
+    }
+    assert!(fired > 100, "{fired}");
+}
+
+#[test]
+fn log_frames_are_checked() {
+    let e = LogFrame::new(2, 2, vec![0.5; 3], vec![0.0; 4]).unwrap_err();
+    assert!(matches!(e, EventError::FrameLength { intensity: 3, log: 4, .. }), "{e}");
+    let e = LogFrame::new(2, 2, vec![0.5, 0.5, -1.0, 0.5], vec![0.0; 4]).unwrap_err();
+    assert!(matches!(e, EventError::BadIntensity { x: 0, y: 1, .. }), "{e}");
+    let e = LogFrame::new(2, 1, vec![0.5, 0.5], vec![0.0, f32::NAN]).unwrap_err();
+    assert!(matches!(e, EventError::BadIntensity { x: 1, y: 0, .. }), "{e}");
+    let mut img = gray(3, 1, |_, _| 0.5);
+    img.pixels[2] = Vec3::new(0.5, f32::INFINITY, 0.5);
+    let e = LogFrame::from_image(&img, &EventConfig::default()).unwrap_err();
+    assert!(matches!(e, EventError::BadIntensity { x: 2, y: 0, .. }), "{e}");
+    // another size or a time not after the last is refused, and nothing changes
+    let mut sim = EventSimulator::new(EventConfig::default(), 3, 1).unwrap();
+    let ok = LogFrame::from_image(&gray(3, 1, |_, _| 0.5), &EventConfig::default()).unwrap();
+    sim.step_log(&ok, 10, &mut VecSink::default()).unwrap();
+    let other = LogFrame::from_image(&gray(2, 1, |_, _| 0.5), &EventConfig::default()).unwrap();
+    assert!(matches!(sim.step_log(&other, 20, &mut VecSink::default()), Err(EventError::FrameSize { .. })));
+    let e = sim.step_log_batch(&[ok.clone(), ok.clone()], &[20, 20], &mut VecSink::default()).unwrap_err();
+    assert!(matches!(e, EventError::NonIncreasingTime { prev_ns: 20, t_ns: 20 }), "{e}");
+    assert_eq!(sim.last_time_ns(), Some(10));
+}

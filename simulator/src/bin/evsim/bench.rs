@@ -61,6 +61,8 @@ pub enum BenchCommand {
     /// Per-frame cost of a dataset's frames (raster, shading, temporal window, spatial filter)
     /// on a short segment.
     Frames(FramesBench),
+    /// `evsim events` against esim_py (ESIM's C++ simulator) on one folder of 8-bit PNG frames.
+    Esim(crate::bench_esim::EsimBench),
 }
 
 /// Options of `evsim bench frames`.
@@ -135,6 +137,7 @@ pub fn run(what: BenchCommand) -> Result<()> {
         BenchCommand::Events(b) => events_bench(&b),
         BenchCommand::Dataset(b) => dataset_bench(&b),
         BenchCommand::Frames(b) => frames_bench(&b),
+        BenchCommand::Esim(b) => crate::bench_esim::esim_bench(&b),
     }
 }
 
@@ -239,7 +242,7 @@ fn frames_bench(b: &FramesBench) -> Result<()> {
 /// Samples per pixel of the Mitsuba ground truth the errors are measured against.
 const GT_SPP: u32 = 1024;
 
-fn median(v: &[f64]) -> f64 {
+pub(crate) fn median(v: &[f64]) -> f64 {
     let mut v = v.to_vec();
     v.sort_by(|a, b| a.total_cmp(b));
     v[v.len() / 2]
@@ -413,7 +416,7 @@ fn bvh_bench(n: usize) -> Result<()> {
 const DRIFT: (f32, f32) = (0.3, 0.1);
 
 /// A smooth colour texture with some sharp edges, large enough for the drift of `frames`.
-fn bench_texture(w: u32, h: u32, frames: usize) -> Image {
+pub(crate) fn bench_texture(w: u32, h: u32, frames: usize) -> Image {
     let tw = w + (DRIFT.0 * frames as f32) as u32 + 2;
     let th = h + (DRIFT.1 * frames as f32) as u32 + 2;
     let mut tex = Image::new(tw, th);
@@ -431,7 +434,7 @@ fn bench_texture(w: u32, h: u32, frames: usize) -> Image {
 }
 
 /// Frame `k`: the texture shifted by `k * DRIFT`, bilinearly interpolated.
-fn bench_frame(tex: &Image, out: &mut Image, k: usize) {
+pub(crate) fn bench_frame(tex: &Image, out: &mut Image, k: usize) {
     let (ox, oy) = (DRIFT.0 * k as f32, DRIFT.1 * k as f32);
     let (ix, iy) = (ox.floor() as usize, oy.floor() as usize);
     let (fx, fy) = (ox - ox.floor(), oy - oy.floor());

@@ -9,6 +9,7 @@
 //!   dataset folder against the Ev-DeblurBlender layout (non-zero exit on problems).
 //! - `evsim scene generate [--out scenes] [--only NAME]`: write the procedural scenes (glTF +
 //!   `scene.toml`) of `simulator::scenegen::registry()`.
+//! - `evsim bench esim`: `evsim events` against esim_py (ESIM's C++ simulator) on one folder.
 //! - `evsim bench render`: render throughput (and the Mitsuba ratio when Mitsuba is installed),
 //!   BVH build time and ray throughput on a 1 M-triangle scene.
 
@@ -28,6 +29,7 @@ use simulator::render::sampler::SamplerKind;
 use simulator::scene::{self, Camera};
 
 mod bench;
+mod bench_esim;
 mod check_cmd;
 mod dataset_cmd;
 mod events_cmd;

@@ -15,6 +15,7 @@
 use std::io;
 use std::path::Path;
 
+use rayon::prelude::*;
 use rust_hdf5::{H5Dataset, H5File, H5Type};
 
 use super::{io_err, AtomicTarget};
@@ -52,12 +53,51 @@ impl<T, P> Columns<T, P> {
     }
 }
 
+/// Full chunks a [`NerfH5Sink`] gathers before compressing them together.
+const FLUSH_CHUNKS: usize = 2;
+
+/// One chunk's bytes as stored (little-endian, as `append` stores them on this platform).
+trait Le: Copy + Send + Sync {
+    fn put(v: &[Self], out: &mut Vec<u8>);
+}
+
+macro_rules! le {
+    ($($t:ty),*) => {$(
+        impl Le for $t {
+            fn put(v: &[$t], out: &mut Vec<u8>) {
+                out.reserve(v.len() * std::mem::size_of::<$t>());
+                for x in v {
+                    out.extend_from_slice(&x.to_le_bytes());
+                }
+            }
+        }
+    )*};
+}
+le!(u16, i64, i8);
+
+/// `CHUNK` elements of a column, filtered (shuffle + deflate) exactly as the writer filters them.
+fn filtered_chunk<T: Le>(chunk: &[T]) -> rust_hdf5::Result<Vec<u8>> {
+    let mut raw = Vec::new();
+    T::put(chunk, &mut raw);
+    let pipeline = rust_hdf5::FilterPipeline::shuffle_deflate(std::mem::size_of::<T>() as u32, DEFLATE);
+    Ok(rust_hdf5::format::messages::filter::apply_filters(&pipeline, &raw)?)
+}
+
 /// Writes the Ev-DeblurNeRF layout (root `x`, `y`, `t` ns, `p` +1/-1).
+///
+/// Full chunks are compressed on all cores (rayon) and stored with direct chunk writes, in the
+/// order `append` would store them (per batch, column by column); the last, partial chunk goes
+/// through `append` at the end. The file has the bytes of one written by appending each batch.
 pub struct NerfH5Sink {
     // Field order is drop order: datasets, then the file, then the temporary-file guard.
     sets: Option<[H5Dataset; 4]>,
     file: Option<H5File>,
+    /// Events pushed and not yet in a written chunk (from element `chunks * CHUNK`).
     cols: Columns<i64, i8>,
+    /// Full chunks written per column.
+    chunks: usize,
+    /// For each batch since the last flush that completed chunks: how many.
+    groups: Vec<usize>,
     n: u64,
     target: AtomicTarget,
 }
@@ -74,11 +114,76 @@ impl NerfH5Sink {
             growable::<i64>(&file, None, "t").map_err(h5)?,
             growable::<i8>(&file, None, "p").map_err(h5)?,
         ];
-        Ok(NerfH5Sink { sets: Some(sets), file: Some(file), cols: Columns::default(), n: 0, target })
+        Ok(NerfH5Sink {
+            sets: Some(sets),
+            file: Some(file),
+            cols: Columns::default(),
+            chunks: 0,
+            groups: Vec::new(),
+            n: 0,
+            target,
+        })
+    }
+
+    /// Compress the full chunks gathered (in parallel) and store them in `append`'s order.
+    fn flush_chunks(&mut self) -> rust_hdf5::Result<()> {
+        let full: usize = self.groups.iter().sum();
+        if full == 0 {
+            return Ok(());
+        }
+        let c = &self.cols;
+        let jobs: Vec<(usize, usize)> = (0..4).flat_map(|col| (0..full).map(move |j| (col, j))).collect();
+        let filtered: Vec<Vec<u8>> = jobs
+            .par_iter()
+            .map(|&(col, j)| {
+                let r = j * CHUNK..(j + 1) * CHUNK;
+                match col {
+                    0 => filtered_chunk(&c.x[r]),
+                    1 => filtered_chunk(&c.y[r]),
+                    2 => filtered_chunk(&c.t[r]),
+                    _ => filtered_chunk(&c.p[r]),
+                }
+            })
+            .collect::<rust_hdf5::Result<_>>()?;
+        let sets = self.sets.as_ref().expect("open until finish");
+        let mut first = 0;
+        for &m in &self.groups {
+            for (col, set) in sets.iter().enumerate() {
+                for j in first..first + m {
+                    set.write_chunk_raw(self.chunks + j, &filtered[col * full + j], 0)?;
+                }
+            }
+            first += m;
+        }
+        self.chunks += full;
+        self.groups.clear();
+        let done = full * CHUNK;
+        let c = &mut self.cols;
+        c.x.drain(..done);
+        c.y.drain(..done);
+        c.t.drain(..done);
+        c.p.drain(..done);
+        for set in sets {
+            set.extend(&[self.chunks * CHUNK])?;
+        }
+        Ok(())
     }
 
     /// Close the file and move it into place; returns the number of events written.
     pub fn finish(mut self) -> io::Result<u64> {
+        let tmp = self.target.tmp.clone();
+        let h5 = |e| io_err(&tmp, "cannot complete the HDF5 file", e);
+        self.flush_chunks().map_err(h5)?;
+        // the partial last chunk: append buffers it and the close writes it
+        if let Some([x, y, t, p]) = self.sets.as_ref() {
+            let c = &self.cols;
+            if !c.x.is_empty() {
+                x.append(&c.x).map_err(h5)?;
+                y.append(&c.y).map_err(h5)?;
+                t.append(&c.t).map_err(h5)?;
+                p.append(&c.p).map_err(h5)?;
+            }
+        }
         self.sets = None;
         let file = self.file.take().expect("open until finish");
         file.close().map_err(|e| io_err(&self.target.tmp, "cannot complete the HDF5 file", e))?;
@@ -93,21 +198,22 @@ impl EventSink for NerfH5Sink {
         if events.is_empty() {
             return Ok(());
         }
+        let before = self.n as usize;
         let c = &mut self.cols;
-        c.clear();
         for e in events {
             c.x.push(e.x);
             c.y.push(e.y);
             c.t.push(e.t_ns);
             c.p.push(if e.p > 0 { 1 } else { -1 });
         }
-        let [x, y, t, p] = self.sets.as_ref().expect("open until finish");
-        let h5 = |e| io_err(&self.target.tmp, "cannot append events", e);
-        x.append(&c.x).map_err(h5)?;
-        y.append(&c.y).map_err(h5)?;
-        t.append(&c.t).map_err(h5)?;
-        p.append(&c.p).map_err(h5)?;
         self.n += events.len() as u64;
+        let completed = self.n as usize / CHUNK - before / CHUNK;
+        if completed > 0 {
+            self.groups.push(completed);
+        }
+        if self.groups.iter().sum::<usize>() >= FLUSH_CHUNKS {
+            self.flush_chunks().map_err(|e| io_err(&self.target.tmp, "cannot append events", e))?;
+        }
         Ok(())
     }
 }
@@ -232,6 +338,52 @@ mod tests {
         assert_eq!(sink.finish().unwrap(), 5000);
         assert!(std::fs::metadata(&path).unwrap().len() > 0);
         assert_eq!(files(&dir), ["events.h5"], "no temporary file remains");
+    }
+
+    /// The plain writer the chunked one must equal: `append` per batch.
+    fn appended(path: &Path, batches: &[&[Event]]) {
+        let file = H5File::create(path).unwrap();
+        let sets = [
+            growable::<u16>(&file, None, "x").unwrap(),
+            growable::<u16>(&file, None, "y").unwrap(),
+            growable::<i64>(&file, None, "t").unwrap(),
+            growable::<i8>(&file, None, "p").unwrap(),
+        ];
+        for b in batches.iter().filter(|b| !b.is_empty()) {
+            sets[0].append(&b.iter().map(|e| e.x).collect::<Vec<_>>()).unwrap();
+            sets[1].append(&b.iter().map(|e| e.y).collect::<Vec<_>>()).unwrap();
+            sets[2].append(&b.iter().map(|e| e.t_ns).collect::<Vec<_>>()).unwrap();
+            sets[3].append(&b.iter().map(|e| if e.p > 0 { 1i8 } else { -1 }).collect::<Vec<_>>()).unwrap();
+        }
+        drop(sets);
+        file.close().unwrap();
+    }
+
+    #[test]
+    fn nerf_h5_has_the_bytes_of_appending_every_batch() {
+        let dir = temp_dir("nerf-h5-bytes");
+        // sizes around chunk boundaries, batches smaller and larger than a chunk
+        for (n, batch) in [
+            (0, 977),
+            (1, 977),
+            (CHUNK - 1, 977),
+            (CHUNK, 977),
+            (CHUNK + 1, 5000),
+            (5 * CHUNK + 17, 977),
+            (5 * CHUNK + 17, 3 * CHUNK / 2),
+            (9 * CHUNK, CHUNK),
+        ] {
+            let events = known_events(n, 1_000_000);
+            let batches: Vec<&[Event]> = events.chunks(batch).collect();
+            let (a, b) = (dir.join("appended.h5"), dir.join("chunked.h5"));
+            appended(&a, &batches);
+            let mut sink = NerfH5Sink::create(&b).unwrap();
+            for batch in &batches {
+                sink.push(batch).unwrap();
+            }
+            assert_eq!(sink.finish().unwrap(), n as u64);
+            assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(), "{n} events in batches of {batch}");
+        }
     }
 
     #[test]

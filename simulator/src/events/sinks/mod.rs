@@ -15,12 +15,14 @@
 //! # What lives where
 //! - this file: [`SinkKind`], [`H5Layout`], [`EventWriter`] (the closed set of writers),
 //!   [`EventFileError`] and the temporary-file guards shared by the writers.
+//! - [`background`]: [`BackgroundWriter`], any of them on a thread of its own.
 //! - [`h5`]: [`NerfH5Sink`] and [`DsecH5Sink`] (pure-Rust HDF5, chunked + deflate).
 //! - [`text`]: the RPG/ECD lines, [`TextSink`].
 //! - [`npz`]: [`NpzSink`] (stored zip of `.npy` files, no ZIP64: at most 4 GiB).
 //! - [`viz`]: [`VizSink`], not an event file but a picture of one: a PNG per time window and an
 //!   event-rate table (`evsim events --viz-dir`).
 
+pub mod background;
 pub mod h5;
 pub mod npz;
 pub mod text;
@@ -29,6 +31,7 @@ pub mod viz;
 use std::io;
 use std::path::{Path, PathBuf};
 
+pub use background::BackgroundWriter;
 pub use h5::{DsecH5Sink, NerfH5Sink};
 pub use npz::NpzSink;
 pub use text::TextSink;

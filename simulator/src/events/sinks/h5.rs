@@ -54,10 +54,10 @@ impl<T, P> Columns<T, P> {
 }
 
 /// Full chunks a [`NerfH5Sink`] gathers before compressing them together.
-const FLUSH_CHUNKS: usize = 2;
+const FLUSH_CHUNKS: usize = 1;
 
 /// One chunk's bytes as stored (little-endian, as `append` stores them on this platform).
-trait Le: Copy + Send + Sync {
+trait Le: Copy + Default + Send + Sync {
     fn put(v: &[Self], out: &mut Vec<u8>);
 }
 
@@ -86,8 +86,8 @@ fn filtered_chunk<T: Le>(chunk: &[T]) -> rust_hdf5::Result<Vec<u8>> {
 /// Writes the Ev-DeblurNeRF layout (root `x`, `y`, `t` ns, `p` +1/-1).
 ///
 /// Full chunks are compressed on all cores (rayon) and stored with direct chunk writes, in the
-/// order `append` would store them (per batch, column by column); the last, partial chunk goes
-/// through `append` at the end. The file has the bytes of one written by appending each batch.
+/// order `append` would store them (per batch, column by column), and the last, partial chunks
+/// (zero-filled) as the close would store them. The file has the bytes of one written by appending each batch.
 pub struct NerfH5Sink {
     // Field order is drop order: datasets, then the file, then the temporary-file guard.
     sets: Option<[H5Dataset; 4]>,
@@ -125,46 +125,59 @@ impl NerfH5Sink {
         })
     }
 
-    /// Compress the full chunks gathered (in parallel) and store them in `append`'s order.
-    fn flush_chunks(&mut self) -> rust_hdf5::Result<()> {
+    /// Compress the full chunks gathered (in parallel) and store them in `append`'s order; with
+    /// `tail`, also the last, partial chunk of each column, zero-filled as the close would
+    /// fill it, after them (where the close would store it).
+    fn flush_chunks(&mut self, tail: bool) -> rust_hdf5::Result<()> {
         let full: usize = self.groups.iter().sum();
-        if full == 0 {
+        let c = &self.cols;
+        let rest = c.x.len() - full * CHUNK;
+        let last = usize::from(tail && rest > 0);
+        if full + last == 0 {
             return Ok(());
         }
-        let c = &self.cols;
-        let jobs: Vec<(usize, usize)> = (0..4).flat_map(|col| (0..full).map(move |j| (col, j))).collect();
-        let filtered: Vec<Vec<u8>> = jobs
-            .par_iter()
-            .map(|&(col, j)| {
-                let r = j * CHUNK..(j + 1) * CHUNK;
-                match col {
-                    0 => filtered_chunk(&c.x[r]),
-                    1 => filtered_chunk(&c.y[r]),
-                    2 => filtered_chunk(&c.t[r]),
-                    _ => filtered_chunk(&c.p[r]),
+        // chunk j of column col: elements j * CHUNK.. of the pending columns, the tail padded
+        let chunk_of = |col: usize, j: usize| -> rust_hdf5::Result<Vec<u8>> {
+            let r = j * CHUNK..((j + 1) * CHUNK).min(c.x.len());
+            fn padded<T: Le + Default>(v: &[T]) -> rust_hdf5::Result<Vec<u8>> {
+                if v.len() == CHUNK {
+                    return filtered_chunk(v);
                 }
-            })
-            .collect::<rust_hdf5::Result<_>>()?;
+                let mut whole = v.to_vec();
+                whole.resize(CHUNK, T::default());
+                filtered_chunk(&whole)
+            }
+            match col {
+                0 => padded(&c.x[r]),
+                1 => padded(&c.y[r]),
+                2 => padded(&c.t[r]),
+                _ => padded(&c.p[r]),
+            }
+        };
+        let per_col = full + last;
+        let jobs: Vec<(usize, usize)> = (0..4).flat_map(|col| (0..per_col).map(move |j| (col, j))).collect();
+        let filtered: Vec<Vec<u8>> =
+            jobs.par_iter().map(|&(col, j)| chunk_of(col, j)).collect::<rust_hdf5::Result<_>>()?;
         let sets = self.sets.as_ref().expect("open until finish");
         let mut first = 0;
-        for &m in &self.groups {
+        for &m in self.groups.iter().chain(std::iter::repeat_n(&1, last)) {
             for (col, set) in sets.iter().enumerate() {
                 for j in first..first + m {
-                    set.write_chunk_raw(self.chunks + j, &filtered[col * full + j], 0)?;
+                    set.write_chunk_raw(self.chunks + j, &filtered[col * per_col + j], 0)?;
                 }
             }
             first += m;
         }
         self.chunks += full;
         self.groups.clear();
-        let done = full * CHUNK;
+        let done = (full * CHUNK + last * rest).min(c.x.len());
         let c = &mut self.cols;
         c.x.drain(..done);
         c.y.drain(..done);
         c.t.drain(..done);
         c.p.drain(..done);
         for set in sets {
-            set.extend(&[self.chunks * CHUNK])?;
+            set.extend(&[self.n as usize - c.x.len()])?;
         }
         Ok(())
     }
@@ -173,20 +186,10 @@ impl NerfH5Sink {
     pub fn finish(mut self) -> io::Result<u64> {
         let tmp = self.target.tmp.clone();
         let h5 = |e| io_err(&tmp, "cannot complete the HDF5 file", e);
-        self.flush_chunks().map_err(h5)?;
-        // the partial last chunk: append buffers it and the close writes it
-        if let Some([x, y, t, p]) = self.sets.as_ref() {
-            let c = &self.cols;
-            if !c.x.is_empty() {
-                x.append(&c.x).map_err(h5)?;
-                y.append(&c.y).map_err(h5)?;
-                t.append(&c.t).map_err(h5)?;
-                p.append(&c.p).map_err(h5)?;
-            }
-        }
+        self.flush_chunks(true).map_err(h5)?;
         self.sets = None;
         let file = self.file.take().expect("open until finish");
-        file.close().map_err(|e| io_err(&self.target.tmp, "cannot complete the HDF5 file", e))?;
+        file.close().map_err(h5)?;
         let n = self.n;
         self.target.commit_ref()?;
         Ok(n)
@@ -212,7 +215,7 @@ impl EventSink for NerfH5Sink {
             self.groups.push(completed);
         }
         if self.groups.iter().sum::<usize>() >= FLUSH_CHUNKS {
-            self.flush_chunks().map_err(|e| io_err(&self.target.tmp, "cannot append events", e))?;
+            self.flush_chunks(false).map_err(|e| io_err(&self.target.tmp, "cannot append events", e))?;
         }
         Ok(())
     }

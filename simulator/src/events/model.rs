@@ -76,6 +76,12 @@ impl FrameStats {
             .then(|| ((dt_ns as f64 * lambda as f64 / self.max_change_c as f64).round() as i64).max(1))
     }
 
+    /// The counts of `events` with the given largest change.
+    fn of(events: &[Event], max_change_c: f32) -> FrameStats {
+        let on = events.iter().filter(|e| e.p > 0).count() as u64;
+        FrameStats { on, off: events.len() as u64 - on, max_change_c }
+    }
+
     fn merge(self, o: FrameStats) -> FrameStats {
         FrameStats { on: self.on + o.on, off: self.off + o.off, max_change_c: self.max_change_c.max(o.max_change_c) }
     }
@@ -568,9 +574,7 @@ impl Interval<'_> {
                 p.l = l1;
             }
         }
-        let new = &out[before..];
-        let on = new.iter().filter(|e| e.p > 0).count() as u64;
-        FrameStats { on, off: new.len() as u64 - on, max_change_c: 0.0f32.max(hi / cp).max(-lo / cm) }
+        FrameStats::of(&out[before..], 0.0f32.max(hi / cp).max(-lo / cm))
     }
 
     /// Advance the pixels of rows `y0..` over the interval, appending their events to `out`.
@@ -629,9 +633,7 @@ impl Interval<'_> {
                 }
             }
         }
-        let new = &out[before..];
-        let on = new.iter().filter(|e| e.p > 0).count() as u64;
-        FrameStats { on, off: new.len() as u64 - on, max_change_c: max_change }
+        FrameStats::of(&out[before..], max_change)
     }
 
     /// Emit the threshold crossings of one pixel whose `D = L - ref` goes from `d0` to `d0 + k`

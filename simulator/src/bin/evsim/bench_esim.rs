@@ -106,7 +106,8 @@ fn time_ours(frames: &Path, stamps: &Path, out: &Path) -> Result<f64> {
     Ok(s)
 }
 
-/// What one esim_py run reported.
+/// What one esim_py run reported (`run.py`'s JSON line).
+#[derive(serde::Deserialize)]
 struct EsimRun {
     seconds: f64,
     events: u64,
@@ -126,13 +127,7 @@ fn time_esim(py: &Path, frames: &Path, stamps: &Path, size: (u32, u32), counts: 
         .with_context(|| format!("cannot run {}", py.display()))?;
     ensure!(run.status.success(), "esim_py failed: {}", String::from_utf8_lossy(&run.stderr));
     let line = String::from_utf8_lossy(&run.stdout);
-    let field = |name: &str| -> Result<f64> {
-        let at = line.find(&format!("\"{name}\": ")).with_context(|| format!("esim_py printed no {name}: {line}"))?;
-        let rest = &line[at + name.len() + 4..];
-        let end = rest.find([',', '}']).unwrap_or(rest.len());
-        rest[..end].trim().parse().with_context(|| format!("esim_py's {name} is not a number: {line}"))
-    };
-    Ok(EsimRun { seconds: field("seconds")?, events: field("events")? as u64 })
+    serde_json::from_str(line.trim()).with_context(|| format!("esim_py printed no seconds/events line: {line}"))
 }
 
 /// Per-pixel ON and OFF counts, in the layout of `run.py`'s (ON plane, then OFF plane).

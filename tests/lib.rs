@@ -9,7 +9,10 @@
 //! (the benchmark's LPIPS against a numpy reference, on random weights), `trainer_runs.rs`
 //! (every preset's smoke run, bit-exact resume, run errors and `evtrain` end to end) and
 //! `bench_runs.rs` (`evbench` end to end: sharded runs merge into the unsharded table, finished
-//! cells are skipped, LPIPS re-scoring, the binary's errors).
+//! cells are skipped, LPIPS re-scoring, the binary's errors), `bad_inputs.rs` (543 generated bad
+//! inputs through `evsim`, `evtrain` and `evbench`: each a clean error, never a panic, an abort or
+//! a silent success) and `fuzz_readers.rs` (mutated glTF, GLB, event `.h5`, `.npy`/`.npz` and
+//! checkpoint files: refused or read within the reader's promises, never a panic).
 //!
 //! This library holds what those files share: fresh temp folders, `.npy` writing and the reference Python
 //! (the Mitsuba venv, which also has numpy, h5py and scikit-image), skipped or required by

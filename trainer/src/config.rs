@@ -128,6 +128,10 @@ pub struct EventLossConfig {
 /// Most events an event window ([`EventLossConfig::window`]) hops.
 pub const MAX_EVENT_WINDOW: u32 = 1000;
 
+/// Most rays (image or event) one training step may take: far above any preset's 1024, far
+/// below what would exhaust memory.
+pub const MAX_BATCH: usize = 1 << 20;
+
 impl EventLossConfig {
     /// The reference synthetic-data settings (dataset-derived values left to resolve).
     pub fn reference() -> EventLossConfig {
@@ -168,6 +172,23 @@ impl TrainConfig {
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{name} is out of range; it must be a positive number (n_coarse >= 3, res >= 2)"));
+            }
+        }
+        // a step holds every ray's samples in memory: a mistyped batch would abort on allocation
+        for (name, v) in
+            [("batch_rays", self.batch_rays), ("events.batch", self.events.as_ref().map_or(1, |e| e.batch))]
+        {
+            if v > MAX_BATCH {
+                return Err(format!("{name} = {v}; at most {MAX_BATCH} rays per step (the presets use 1024)"));
+            }
+        }
+        let volumes = [("model.coarse_volume", Some(&m.coarse_volume)), ("model.fine_volume", m.fine_volume.as_ref())];
+        for (name, v) in volumes.into_iter().filter_map(|(n, v)| v.map(|v| (n, v))) {
+            if v.comps.contains(&0) || v.features == 0 {
+                return Err(format!(
+                    "{name}.comps = {:?}, features = {}; every count must be >= 1",
+                    v.comps, v.features
+                ));
             }
         }
         let non_negative = [

@@ -186,19 +186,28 @@ impl RunPaths {
 
     /// The checkpoint to resume from (saved for `layout`), or `None` when the run has not
     /// reached its first one (`checkpoint_every` steps); a checkpoint missing once one was due
-    /// (the log records that many steps) is an error, not a silent restart at step 0.
+    /// (the log records that many steps, or the `.seconds` sidecar of a written one remains) is
+    /// an error, not a silent restart at step 0.
     pub fn resume_checkpoint(&self, layout: &Layout, checkpoint_every: u64) -> Result<Option<Checkpoint>, TrainError> {
         let path = self.checkpoint();
         if path.is_file() {
             return Checkpoint::load(layout, &path).map(Some);
         }
         let logged = std::fs::read_to_string(self.log()).map_or(0, |t| t.lines().skip(1).count() as u64);
-        if logged >= checkpoint_every {
+        let sidecar = crate::checkpoint::seconds_path(&path);
+        if logged >= checkpoint_every || sidecar.is_file() {
+            let sidecar_note = if sidecar.is_file() {
+                format!(" and {} shows one was written", sidecar.display())
+            } else {
+                String::new()
+            };
+            let why = format!(
+                "missing, but log.csv records {logged} steps (a checkpoint is written every {checkpoint_every} and at \
+                 the end){sidecar_note}"
+            );
             return Err(TrainError::run(
                 path,
-                format!(
-                    "missing, but log.csv records {logged} steps and a checkpoint is written every {checkpoint_every}"
-                ),
+                why,
                 "restore the checkpoint, or delete the run folder to train from step 0",
             ));
         }
@@ -324,7 +333,7 @@ impl<'a> Trainer<'a> {
         }
         let method = Method::new(&cfg, data.views.len());
         let threads = if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads };
-        check_memory(&cfg, method.layout().len(), threads, available_memory()).map_err(TrainError::Config)?;
+        check_memory(&cfg, method.layout(), threads, available_memory()).map_err(TrainError::Config)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
@@ -562,7 +571,7 @@ fn bytes_per_parameter(threads: usize) -> u64 {
 /// checks this itself; call it to refuse before writing anything.
 pub fn check_fits_in_memory(cfg: &TrainConfig, views: usize) -> Result<(), String> {
     let threads = if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads };
-    check_memory(cfg, Method::new(cfg, views).layout().len(), threads, available_memory())
+    check_memory(cfg, Method::new(cfg, views).layout(), threads, available_memory())
 }
 
 /// The memory this machine has available (`MemAvailable` of `/proc/meminfo`), when known.
@@ -575,7 +584,8 @@ fn available_memory() -> Option<u64> {
 
 /// Refuses a model whose training state cannot fit in `available` bytes (a mistyped volume
 /// resolution would otherwise abort the process on allocation), naming the settings that size it.
-fn check_memory(cfg: &TrainConfig, parameters: usize, threads: usize, available: Option<u64>) -> Result<(), String> {
+fn check_memory(cfg: &TrainConfig, layout: &Layout, threads: usize, available: Option<u64>) -> Result<(), String> {
+    let parameters = layout.len();
     let need = (parameters as u64).saturating_mul(bytes_per_parameter(threads));
     let Some(available) = available else { return Ok(()) };
     if need <= available {
@@ -590,10 +600,16 @@ fn check_memory(cfg: &TrainConfig, parameters: usize, threads: usize, available:
         ),
         None => format!("model.coarse_volume.res = {} (comps {:?})", m.coarse_volume.res, m.coarse_volume.comps),
     };
+    let largest = layout
+        .tensors
+        .iter()
+        .max_by_key(|t| t.range.len())
+        .map_or_else(String::new, |t| format!("; its largest tensor is {} ({} parameters)", t.name, t.range.len()));
     Err(format!(
-        "the model has {parameters} parameters: training needs about {:.1} GB (parameters, Adam state and {threads} \
-         gradient buffers) but {:.1} GB of memory is available; {volumes} size it; lower them (the cpu \
-         presets use res 256, the paper presets 256 and 512)",
+        "the model has {parameters} parameters{largest}: training needs about {:.1} GB (parameters, Adam state and \
+         {threads} gradient buffers) but {:.1} GB of memory is available; {volumes} and the MLP widths \
+         (model.coarse.density_hidden, ...) size it; lower them (the cpu presets use res 256, the paper presets \
+         256 and 512)",
         gb(need),
         gb(available)
     ))
@@ -607,15 +623,16 @@ mod memory_tests {
     #[test]
     fn a_model_too_big_for_the_memory_is_refused_by_name_and_a_preset_fits() {
         let mut cfg = crate::presets::nerf(crate::presets::Scale::Cpu);
-        let n = Model::new(&cfg.model).layout.len();
+        let n = &Model::new(&cfg.model).layout;
         // 24 GB, this project's reference machine
         let machine = Some(24_000_000_000);
         assert_eq!(check_memory(&cfg, n, 2, machine), Ok(()));
         assert_eq!(check_memory(&cfg, n, 2, None), Ok(()));
         cfg.model.coarse_volume.res = 100_000;
-        let n = Model::new(&cfg.model).layout.len();
+        let n = &Model::new(&cfg.model).layout;
         let e = check_memory(&cfg, n, 2, machine).unwrap_err();
         assert!(e.contains("model.coarse_volume.res = 100000") && e.contains("GB of memory is available"), "{e}");
+        assert!(e.contains("largest tensor is"), "{e}");
         // an unknown amount of memory refuses nothing
         assert_eq!(check_memory(&cfg, n, 2, None), Ok(()));
     }

@@ -365,6 +365,13 @@ pub fn check_dataset(dir: &Path, opts: &CheckOptions) -> Result<CheckReport, Che
                     format!("{} views, but images_1/ has {}", m.views, n.unwrap_or(0)),
                     fix,
                 );
+            } else if let Some((w, h)) = size.filter(|&s| s != (m.dataset.width, m.dataset.height)) {
+                lines.invalid(
+                    "dataset.toml",
+                    "dataset.width, dataset.height",
+                    format!("{}x{}, but the images are {w}x{h}", m.dataset.width, m.dataset.height),
+                    fix,
+                );
             } else if let Some(e) = events.as_ref().filter(|e| e.count != m.events) {
                 lines.invalid(
                     "dataset.toml",

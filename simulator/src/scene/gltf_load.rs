@@ -65,6 +65,7 @@ const SUPPORTED_EXTENSIONS: &[&str] =
 /// Load a `.gltf` or `.glb` file into a flattened world-space [`Scene`].
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let bytes = std::fs::read(path).map_err(|e| SceneError::io(path, e))?;
+    check_glb_length(path, &bytes)?;
     // parse without validation first so that an unsupported required extension gets our own
     // message rather than the crate's generic validation error
     let gltf = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| parse_error(path, e))?;
@@ -72,6 +73,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     check_version(path, gltf.document.as_json())?;
     check_extensions(path, gltf.document.as_json(), &mut warnings)?;
     check_position_accessors(path, gltf.document.as_json())?;
+    check_images(path, gltf.document.as_json())?;
     let blob = gltf.blob;
     let mut json = gltf.document.into_json();
     // every required extension is one of ours now; the crate's validator would still reject
@@ -200,6 +202,41 @@ fn check_position_accessors(path: &Path, root: &gltf::json::Root) -> Result<(), 
     Ok(())
 }
 
+/// A GLB's declared total length must cover its header and fit in the file (gltf 1.4 subtracts
+/// the header size from it unchecked, which panics with overflow checks on).
+fn check_glb_length(path: &Path, bytes: &[u8]) -> Result<(), SceneError> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    let declared = bytes.get(8..12).map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")) as usize);
+    match declared {
+        Some(n) if (20..=bytes.len()).contains(&n) => Ok(()),
+        _ => Err(SceneError::invalid(
+            path,
+            "GLB container",
+            format!(
+                "the header declares {} bytes, the file has {}; the file is truncated or damaged, re-export it",
+                declared.map_or("no length".into(), |n| n.to_string()),
+                bytes.len()
+            ),
+        )),
+    }
+}
+
+/// Every image needs a source, a `uri` or a `bufferView` (gltf 1.4 panics on one with neither).
+fn check_images(path: &Path, root: &gltf::json::Root) -> Result<(), SceneError> {
+    for (i, image) in root.images.iter().enumerate() {
+        if image.uri.is_none() && image.buffer_view.is_none() {
+            return Err(SceneError::invalid(
+                path,
+                label("image", i, image.name.as_deref()),
+                "has neither a uri nor a bufferView; point it at the texture file or re-export the file",
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Read every buffer: the GLB blob, a data URI or a file relative to the scene file.
 fn load_buffers(
     path: &Path,
@@ -220,6 +257,13 @@ fn load_buffers(
             })?,
             gltf::buffer::Source::Uri(uri) => read_uri(path, base, uri, &el)?,
         };
+        if buffer.length() == 0 {
+            return Err(SceneError::invalid(
+                path,
+                format!("{el} byteLength"),
+                "is missing or 0 (glTF requires the buffer's size, at least 1); re-export the file",
+            ));
+        }
         if data.len() < buffer.length() {
             return Err(SceneError::invalid(
                 path,
@@ -350,6 +394,22 @@ impl Walker<'_, '_> {
                         format!("{} is not a field of view; give the vertical angle in radians, in (0, pi)", p.yfov()),
                     ));
                 }
+                // we render with the image's own aspect and no clipping planes, but values the
+                // glTF specification forbids mean a broken export
+                let near_far_ok = p.znear() > 0.0 && p.zfar().is_none_or(|f| f > p.znear());
+                if !near_far_ok || p.aspect_ratio().is_some_and(|a| !(a > 0.0 && a.is_finite())) {
+                    return Err(SceneError::invalid(
+                        self.path,
+                        format!("{el} perspective"),
+                        format!(
+                            "znear {}, zfar {:?}, aspectRatio {:?}: glTF requires znear > 0, zfar > znear and \
+                             aspectRatio > 0; fix the camera or re-export the file",
+                            p.znear(),
+                            p.zfar(),
+                            p.aspect_ratio()
+                        ),
+                    ));
+                }
                 // strip scale (and shear): keep rotation and translation only
                 let (_, rotation, translation) = world.to_scale_rotation_translation();
                 let name = camera.name().map(str::to_string).unwrap_or_else(|| el.clone());
@@ -377,6 +437,13 @@ fn punctual_light(
     let power = Vec3::from(light.color()) * (light.intensity() / super::LUMENS_PER_WATT);
     if !power.is_finite() || power.min_element() < 0.0 {
         return Err(SceneError::invalid(path, el, "color and intensity must be finite and non-negative"));
+    }
+    if let Some(range) = light.range().filter(|r| !(*r > 0.0)) {
+        return Err(SceneError::invalid(
+            path,
+            format!("{el} range"),
+            format!("{range} must be > 0 (or absent: no limit)"),
+        ));
     }
     let position = world.transform_point3(Vec3::ZERO);
     let direction = world.transform_vector3(Vec3::NEG_Z).try_normalize().ok_or_else(|| {

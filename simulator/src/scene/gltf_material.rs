@@ -45,6 +45,13 @@ fn material(tex: &mut TextureLoader, m: &gltf::Material, warnings: &mut Vec<Stri
         }
     }
     let strength = m.emissive_strength().unwrap_or(1.0);
+    if !(strength.is_finite() && strength >= 0.0) {
+        return Err(SceneError::invalid(
+            tex.path,
+            format!("{el} KHR_materials_emissive_strength.emissiveStrength"),
+            format!("{strength} must be finite and non-negative"),
+        ));
+    }
     let emission = Vec3::from(m.emissive_factor()) * strength;
     let base_color = Vec3::new(r, g, b);
     if !(base_color.is_finite()

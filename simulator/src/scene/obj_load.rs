@@ -29,7 +29,7 @@
 //! | `Pr x`           | `roughness = x`, `specular = 1`   | PBR extension; overrides `Ns`                |
 //! | `Pm x`           | `metallic = x`, `specular = 1`    | PBR extension                                |
 //! | `map_Pr`, `map_Pm`, `map_Ks`, `bump`/`map_Bump`/`norm`, `d < 1` | ignored | one warning per material |
-//! | (no `usemtl`)    | [`Material::default`] with `specular = 0` | also for an unknown `usemtl` name (warning) |
+//! | (no `usemtl`)    | [`Material::default`] with `specular = 0` | an unknown `usemtl` name is an error |
 //!
 //! The roughness formula is the Blinn-Phong exponent <-> Beckmann/GGX correspondence
 //! `alpha^2 = 2 / (Ns + 2)` with our `alpha = roughness^2`. All OBJ materials are one-sided
@@ -93,6 +93,14 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
                     rec.error = Some(format!("{} is not a text MTL file ({e})", full.display()));
                     Err(tobj::LoadError::ReadError)
                 }
+                Ok(text) if short_colour_line(text).is_some() => {
+                    let (n, line) = short_colour_line(text).expect("checked");
+                    rec.error = Some(format!(
+                        "{} line {n}: `{line}` gives fewer than 3 numbers; write the colour as `key r g b`",
+                        full.display()
+                    ));
+                    Err(tobj::LoadError::MaterialParseError)
+                }
                 Ok(text) => {
                     let result = tobj::load_mtl_buf(&mut Cursor::new(text.as_bytes()));
                     let content = text.lines().any(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
@@ -139,9 +147,10 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     }
     for name in &scan.usemtl {
         if !tobj_materials.iter().any(|(m, _)| &m.name == name) {
-            scene.warnings.push(format!(
-                "{}: usemtl {name}: no such material in the mtllib files; using the default material",
-                path.display()
+            return Err(SceneError::invalid(
+                path,
+                format!("usemtl {name}"),
+                "no such material in the mtllib files; define it there (newmtl) or remove the usemtl line",
             ));
         }
     }
@@ -297,6 +306,16 @@ fn convert_material(
             m.emission = Vec3::ONE;
         }
     }
+    let colours = [("Kd", mat.diffuse), ("Ke", mat.emissive), ("Ks", mat.specular), ("Ka", mat.ambient)];
+    for (key, c) in colours {
+        if let Some(c) = c.filter(|c| c.iter().any(|v| !(v.is_finite() && *v >= 0.0))) {
+            return Err(SceneError::invalid(
+                mtl,
+                element(key),
+                format!("{c:?}: colours must be finite and non-negative"),
+            ));
+        }
+    }
     // specular layer: Blinn-Phong Ns -> alpha^2 = 2/(Ns+2), roughness = sqrt(alpha)
     let ks_on = mat.specular.is_some_and(|ks| ks.iter().any(|&c| c > 0.0));
     if ks_on {
@@ -338,6 +357,16 @@ fn convert_material(
     Ok(m)
 }
 
+/// The first `Ka`/`Kd`/`Ks`/`Ke` line of an MTL text with fewer than 3 numbers (1-based line
+/// number and text): tobj 4 panics on such a line instead of returning an error.
+fn short_colour_line(text: &str) -> Option<(usize, &str)> {
+    text.lines().enumerate().find_map(|(i, line)| {
+        let mut words = line.split_whitespace();
+        let colour = matches!(words.next(), Some("Ka" | "Kd" | "Ks" | "Ke"));
+        (colour && words.count() < 3).then(|| (i + 1, line.trim()))
+    })
+}
+
 /// What a plain text pass over the OBJ finds before tobj runs.
 struct TextScan {
     /// Material names used by `usemtl`, first use order, unique.
@@ -362,7 +391,23 @@ fn scan_text(path: &Path, text: &str) -> Result<TextScan, SceneError> {
             seen[k] += 1;
         }
         if key == Some("f") {
+            if line.split_whitespace().count() < 4 {
+                return Err(SceneError::invalid(
+                    path,
+                    format!("object \"{object}\" face (line {})", line_no + 1),
+                    format!("`{}` has fewer than 3 vertices; a face needs at least 3", line.trim()),
+                ));
+            }
             check_face_refs(path, &object, line_no + 1, line, totals, seen)?;
+        }
+        if let Some(k @ ("vt" | "vn")) = key {
+            if line.split_whitespace().skip(1).any(|w| w.parse::<f32>().is_ok_and(|x| !x.is_finite())) {
+                return Err(SceneError::invalid(
+                    path,
+                    format!("object \"{object}\" {k} (line {})", line_no + 1),
+                    format!("non-finite value `{}`; texture coordinates and normals must be finite", line.trim()),
+                ));
+            }
         }
         match words.next() {
             Some("o") | Some("g") => object = words.collect::<Vec<_>>().join(" "),
@@ -670,14 +715,30 @@ map_Pr rough.png
     }
 
     #[test]
-    fn unknown_usemtl_warns_and_uses_default() {
+    fn unknown_usemtl_is_an_error_naming_it() {
         let dir = temp_dir("unknown");
         write(&dir, "m.mtl", "newmtl a\nKd 1 0 0\n");
         let obj = write(&dir, "u.obj", "mtllib m.mtl\nusemtl zzz\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-        let s = load(&obj).unwrap();
-        assert!(s.warnings.iter().any(|w| w.contains("usemtl zzz")), "{:?}", s.warnings);
-        let m = &s.materials[s.mesh.material[0] as usize];
-        assert_eq!(m.specular, 0.0);
-        assert_eq!(m.base_color, Vec3::splat(0.8));
+        let e = load(&obj).unwrap_err().to_string();
+        assert!(e.contains("u.obj") && e.contains("usemtl zzz") && e.contains("no such material"), "{e}");
+    }
+
+    #[test]
+    fn short_colours_short_faces_and_non_finite_values_are_errors_not_panics() {
+        let dir = temp_dir("short");
+        let cases = [
+            ("newmtl a\nKd 0.5 0.5\n", "usemtl a\nf 1 2 3\n", "fewer than 3 numbers"),
+            ("newmtl a\nKe nan 1 1\n", "usemtl a\nf 1 2 3\n", "finite and non-negative"),
+            ("newmtl a\nKd -1 0 0\n", "usemtl a\nf 1 2 3\n", "finite and non-negative"),
+            ("newmtl a\n", "usemtl a\nf 1 2\n", "fewer than 3 vertices"),
+            ("newmtl a\n", "vt nan 0\nusemtl a\nf 1 2 3\n", "non-finite value"),
+            ("newmtl a\n", "vn 0 inf 1\nusemtl a\nf 1 2 3\n", "non-finite value"),
+        ];
+        for (i, (mtl, tail, want)) in cases.iter().enumerate() {
+            write(&dir, &format!("m{i}.mtl"), mtl);
+            let text = format!("mtllib m{i}.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n{tail}");
+            let e = load(&write(&dir, &format!("o{i}.obj"), &text)).unwrap_err().to_string();
+            assert!(e.contains(want), "case {i}: {e}");
+        }
     }
 }

@@ -94,12 +94,37 @@ impl Events {
         };
         let chunk = chunk.max(1);
         let mut start = 0;
+        let mut last_t = f64::NEG_INFINITY;
         while start < n {
             let count = chunk.min(n - start);
             let read = |c: &EventColumnReader| c.read(start, count).map_err(|e| LoadError::unreadable(FILE, e, fix));
             let (cx, cy, ct, cp) = (read(&cols[0])?, read(&cols[1])?, read(&cols[2])?, read(&cols[3])?);
             for j in 0..count {
                 let t_us = ct.get(j) * us_per_unit;
+                // the checker refuses these files; a reader called on its own must too, or the
+                // successors below (the next event in file order) would pair wrong events
+                if t_us.is_nan() || t_us < last_t {
+                    return Err(LoadError::invalid(
+                        FILE,
+                        "t",
+                        format!(
+                            "event {} at t = {} goes back in time (after {last_t} us) or is not a number",
+                            start + j,
+                            ct.get(j)
+                        ),
+                        "sort the events by t (stable sort; ties are allowed)",
+                    ));
+                }
+                last_t = t_us;
+                let p = cp.get(j);
+                if !(p == 1.0 || p == 0.0 || p == -1.0) {
+                    return Err(LoadError::invalid(
+                        FILE,
+                        "p",
+                        format!("event {} has polarity {p}", start + j),
+                        "store polarity as 0/1 or -1/+1",
+                    ));
+                }
                 // drop events the trajectory does not cover, as the reference does
                 if !(t_us >= range_us.0 && t_us <= range_us.1) {
                     ev.dropped += 1;
@@ -118,7 +143,7 @@ impl Events {
                 ev.x.push(x as f32);
                 ev.y.push(y as f32);
                 ev.t_us.push(t_us);
-                ev.polarity.push(if cp.get(j) > 0.0 { 1 } else { -1 });
+                ev.polarity.push(if p > 0.0 { 1 } else { -1 });
             }
             start += count;
         }

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::{Parser, Subcommand};
 
 use simulator::dataset::check::EventsUnit;
@@ -366,10 +366,7 @@ fn scale_name(scale: Scale) -> &'static str {
 }
 
 fn eval(dir: &Path, threads: usize) -> Result<()> {
-    let run = RunPaths::new(dir);
-    let text = std::fs::read_to_string(run.config())
-        .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
-    let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
+    let (run, record) = read_record(dir)?;
     let _lock = run.lock()?; // it writes eval/ and metrics.json
     let dataset = load(&record.data, &record.config, false, record.events_unit)?;
     let method = Method::new(&record.config, dataset.views.len());
@@ -400,12 +397,19 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
     Ok(())
 }
 
-/// A run folder's paths and record, and its dataset with events and sharp views.
-fn open_run(dir: &Path) -> Result<(RunPaths, RunRecord, Dataset)> {
+/// A run folder's paths and its recorded settings (`config.toml`), checked as a new run's are.
+fn read_record(dir: &Path) -> Result<(RunPaths, RunRecord)> {
     let run = RunPaths::new(dir);
     let text = std::fs::read_to_string(run.config())
         .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
     let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
+    record.config.validate().map_err(|e| anyhow!("{}: {e}; fix it or train the run again", run.config().display()))?;
+    Ok((run, record))
+}
+
+/// A run folder's paths and record, and its dataset with events and sharp views.
+fn open_run(dir: &Path) -> Result<(RunPaths, RunRecord, Dataset)> {
+    let (run, record) = read_record(dir)?;
     let opts =
         LoadOptions { read_events: true, read_sharp: true, events_unit: record.events_unit, ..LoadOptions::default() };
     let dataset = Dataset::load(&record.data, &opts)?;

@@ -41,6 +41,7 @@ use crate::engine::rng::Rng;
 use crate::error::TrainError;
 use crate::events::ecrf::{Ecrf, EcrfWorkspace};
 use crate::train::{prepare, response, scene_bounds, unzip, PreparedRay, NDC_NEAR};
+use simulator::events::{EventConfig, Sensor};
 use simulator::trajectory::Pose;
 
 /// The reference luma of monochrome events (BT.601), used when the dataset does not say.
@@ -150,40 +151,26 @@ pub fn resolve(cfg: &mut TrainConfig, data: &Dataset) {
     }
     let Some(ev) = cfg.events.as_mut() else { return };
     let model = event_model(data);
-    let model = model.as_ref();
-    let num = |key: &str| model_number(model, key);
     if ev.threshold.is_none() {
         ev.threshold = Some(dataset_thresholds(data).unwrap_or([0.2, 0.2]));
     }
     if ev.log_eps.is_none() {
-        ev.log_eps = Some(num("log_eps").unwrap_or(1e-5));
+        ev.log_eps = Some(model.map_or(1e-5, |m| m.log_eps as f64));
     }
     if ev.luma.is_none() {
-        let sensor = model.and_then(|m| m.get("sensor")).and_then(|s| s.as_str());
-        ev.luma = Some(if sensor == Some("mono") { REC709 } else { BT601 });
+        ev.luma = Some(if model.is_some_and(|m| m.sensor == Sensor::Mono) { REC709 } else { BT601 });
     }
-}
-
-/// A number of the `[event_model]` table (an integer reads as a float).
-fn model_number(model: Option<&toml::Value>, key: &str) -> Option<f64> {
-    model.and_then(|m| m.get(key)).and_then(|v| v.as_float().or(v.as_integer().map(|i| i as f64)))
 }
 
 /// The thresholds `[c_pos, c_neg]` the dataset's events were simulated with (its
 /// `dataset.toml`), if it records them.
 pub fn dataset_thresholds(data: &Dataset) -> Option<[f64; 2]> {
-    let model = event_model(data);
-    match (model_number(model.as_ref(), "c_pos"), model_number(model.as_ref(), "c_neg")) {
-        (Some(on), Some(off)) => Some([on, off]),
-        _ => None,
-    }
+    event_model(data).map(|m| [m.c_pos as f64, m.c_neg as f64])
 }
 
-/// The `[event_model]` table of the dataset's `dataset.toml` (written by `evsim`), if any.
-pub fn event_model(data: &Dataset) -> Option<toml::Value> {
-    let text = std::fs::read_to_string(data.dir.join("dataset.toml")).ok()?;
-    let manifest: toml::Value = toml::from_str(&text).ok()?;
-    manifest.get("event_model").cloned()
+/// The event model of the dataset's manifest (`dataset.toml`, written by `evsim`), if any.
+pub fn event_model(data: &Dataset) -> Option<&EventConfig> {
+    data.manifest.as_ref().map(|m| &m.event_model)
 }
 
 /// The events the loss samples from: indices of events with a successor (`min_hops`
@@ -262,8 +249,7 @@ impl StepData {
     ) -> Result<StepData, TrainError> {
         let mut candidates = Vec::new();
         if let Some(e) = &cfg.events {
-            let sensor = event_model(data).and_then(|m| m.get("sensor").and_then(|s| s.as_str().map(str::to_string)));
-            if e.colour && sensor.as_deref() == Some("mono") {
+            if e.colour && event_model(data).is_some_and(|m| m.sensor == Sensor::Mono) {
                 return Err(TrainError::Config(format!(
                     "events.colour = true, but {} says the events are monochrome (sensor = \"mono\"); set events.colour = false or write the dataset with the rggb sensor",
                     data.dir.join("dataset.toml").display()

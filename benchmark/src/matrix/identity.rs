@@ -15,6 +15,7 @@ use std::path::Path;
 
 use serde::Serialize;
 use sha2::{Digest, Sha256};
+use simulator::dataset::manifest::DatasetManifest;
 use trainer::config::TrainConfig;
 use trainer::presets::Scale;
 
@@ -58,14 +59,11 @@ pub fn cell_key(preset: &str, scale: Scale, dataset: &str, config: &TrainConfig)
 
 /// The identity of an existing dataset folder (see the module doc).
 pub fn folder_identity(dir: &Path) -> Result<String, BenchError> {
-    let manifest = dir.join("dataset.toml");
-    if let Ok(text) = std::fs::read_to_string(&manifest) {
-        let value: toml::Value = toml::from_str(&text).map_err(|e| {
-            BenchError::results(&manifest, format!("not a TOML manifest ({e}); delete it or rewrite the dataset"))
-        })?;
-        if let Some(h) = value.get("settings_hash").and_then(|v| v.as_str()) {
-            return Ok(h.to_string());
-        }
+    let manifest = DatasetManifest::read(dir).map_err(|e| {
+        BenchError::results(&dir.join("dataset.toml"), format!("{e}; delete it or simulate the dataset again"))
+    })?;
+    if let Some(m) = manifest {
+        return Ok(m.settings_hash);
     }
     let mut files = Vec::new();
     list_files(dir, dir, &mut files)?;
@@ -140,8 +138,12 @@ mod tests {
         std::fs::write(dir.join("images_1/00.png"), b"y").unwrap();
         let b = folder_identity(&dir).unwrap();
         assert_ne!(a, b);
-        std::fs::write(dir.join("dataset.toml"), "settings_hash = \"feed\"\n").unwrap();
+        let manifest = DatasetManifest { settings_hash: "feed".into(), ..DatasetManifest::example() };
+        std::fs::write(dir.join("dataset.toml"), manifest.to_toml().unwrap()).unwrap();
         assert_eq!(folder_identity(&dir).unwrap(), "feed");
+        // a damaged manifest is an error, not a fall-back to the file hash
+        std::fs::write(dir.join("dataset.toml"), "settings_hash = \"feed\"\n").unwrap();
+        assert!(folder_identity(&dir).unwrap_err().to_string().contains("dataset.toml"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use simulator::dataset::blur::blur_stats;
+use simulator::dataset::manifest::DatasetManifest;
 use simulator::exposure::CameraResponse;
 use simulator::render::accel::Accel;
 use trainer::data::{Dataset, LoadOptions};
@@ -110,16 +111,10 @@ pub fn run(plan: &SweepPlan, mut on_point: impl FnMut(&DataStats)) -> Result<Vec
 /// `<results>/sweep/edi/`).
 fn measure(sim: &simulator::dataset::Plan, dir: &Path, results: &Path) -> Result<DataStats, BenchError> {
     let manifest = dir.join("dataset.toml");
-    let text = std::fs::read_to_string(&manifest).map_err(|e| {
-        BenchError::results(&manifest, format!("cannot read ({e}); delete the dataset folder to re-simulate it"))
-    })?;
-    let m: toml::Table = toml::from_str(&text).map_err(|e| {
-        BenchError::results(&manifest, format!("{}; delete the dataset folder to re-simulate it", e.message()))
-    })?;
-    let int = |k: &str| m.get(k).and_then(toml::Value::as_integer);
-    let (Some(events), Some(frames), Some(period)) = (int("events"), int("frames"), int("frame_period_ns")) else {
-        return Err(BenchError::results(&manifest, "lacks events, frames or frame_period_ns; re-simulate the dataset"));
-    };
+    let m = DatasetManifest::read(dir)
+        .map_err(|e| BenchError::results(&manifest, format!("{e}; delete the dataset folder to re-simulate it")))?
+        .ok_or_else(|| BenchError::results(&manifest, "missing; delete the dataset folder to re-simulate it"))?;
+    let (events, frames, period) = (m.events, m.frames, m.frame_period_ns);
     // the settings the dataset was simulated with (its plan)
     let thresholds = (sim.events.c_pos as f64, sim.events.c_neg as f64);
     let gamma = match sim.config.response {

@@ -1,5 +1,5 @@
 //! The dataset schema check: open a dataset folder (ours or a public Ev-DeblurBlender /
-//! Ev-DeblurCDAVIS one) and verify it against `dataset-format.md`, the layout the reference
+//! Ev-DeblurCDAVIS one) and verify it against `docs/dataset-format.md`, the layout the reference
 //! loader reads.
 //!
 //! [`check_dataset`] runs every check it can and collects the outcome of each in a
@@ -16,7 +16,7 @@
 //! | `events.h5` | `x`, `y`, `t`, `p` 1-D of equal length, integer (float: rectified), `t` non-decreasing and inside the trajectory's range (ns or us, auto-detected), `p` in {0, 1} or {-1, +1}, 0 <= x < W, 0 <= y < H; streamed in chunks |
 //! | `ev_map.npz` (optional) | `inv_mapx`, `inv_mapy` of shape (H, W) |
 //! | `images_sharp_1/` (optional, ours) | the same PNG names and size as `images_1/` |
-//! | `dataset.toml` (optional, ours) | present or absent |
+//! | `dataset.toml` (optional, ours) | parsed strictly ([`super::manifest::DatasetManifest`]); `views`, `width` x `height` and `events` agree with the files |
 //!
 //! Test-view policies: synthetic scenes hold out every 8th image (index 0, 8, 16, ...:
 //! `llffhold = 8`), the real-camera scenes the last 5; [`TestViewPolicy::Auto`] accepts either

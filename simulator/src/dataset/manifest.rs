@@ -97,23 +97,8 @@ impl DatasetManifest {
         Ok(m)
     }
 
-    /// Reads `dir/dataset.toml`: `Ok(None)` when there is none (public datasets have none).
-    pub fn read(dir: &Path) -> Result<Option<DatasetManifest>, String> {
-        let path = dir.join(FILE);
-        if !path.is_file() {
-            return Ok(None);
-        }
-        let text = std::fs::read_to_string(&path).map_err(|e| format!("cannot be read: {e}"))?;
-        DatasetManifest::parse(&text).map(Some)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::trajectory::FastMotion;
-
-    fn manifest() -> DatasetManifest {
+    /// A small valid manifest (9 views of `scenes/tiny`, 30 events): for tests of readers.
+    pub fn example() -> DatasetManifest {
         DatasetManifest {
             tool: "evsim".into(),
             version: "0.1.0".into(),
@@ -135,7 +120,7 @@ mod tests {
             events_off: 20,
             dataset: DatasetConfig::default(),
             event_model: EventConfig { c_pos: 0.5, c_neg: 0.4, ..EventConfig::default() },
-            trajectory: TrajectoryConfig::FastMotion(FastMotion {
+            trajectory: TrajectoryConfig::FastMotion(crate::trajectory::FastMotion {
                 target: [0.0; 3],
                 radius: 3.9,
                 height: Some(0.4),
@@ -146,6 +131,25 @@ mod tests {
                 keys: 9,
             }),
         }
+    }
+
+    /// Reads `dir/dataset.toml`: `Ok(None)` when there is none (public datasets have none).
+    pub fn read(dir: &Path) -> Result<Option<DatasetManifest>, String> {
+        let path = dir.join(FILE);
+        if !path.is_file() {
+            return Ok(None);
+        }
+        let text = std::fs::read_to_string(&path).map_err(|e| format!("cannot be read: {e}"))?;
+        DatasetManifest::parse(&text).map(Some)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn manifest() -> DatasetManifest {
+        DatasetManifest::example()
     }
 
     #[test]

@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use simulator::dataset::check::{check_dataset, CheckOptions, EventsUnit, TestViewPolicy};
+use simulator::dataset::manifest::DatasetManifest;
 use simulator::npy::{read_npy, read_npz, NpyArray};
 use simulator::trajectory::Pose;
 
@@ -110,6 +111,8 @@ pub struct Dataset {
     pub transform: WorldTransform,
     /// The schema check's warnings (lenient forms that were accepted).
     pub warnings: Vec<String>,
+    /// The `evsim` manifest (`dataset.toml`), when the folder has one (public datasets have none).
+    pub manifest: Option<DatasetManifest>,
 }
 
 const POSES: &str = "poses_bounds.npy";
@@ -162,6 +165,9 @@ impl Dataset {
         let warnings = report.warnings().collect();
         let policy = report.test_views.unwrap_or(TestViewPolicy::Every8);
         let unit = report.events.as_ref().map_or(EventsUnit::Ns, |e| e.unit);
+        // the check has parsed it strictly; read the typed copy the trainer uses
+        let manifest = DatasetManifest::read(dir)
+            .map_err(|e| LoadError::unreadable("dataset.toml", e, "simulate the dataset again (evsim dataset)"))?;
 
         // 2. poses: LLFF conversion, scale, recentring
         let rows = read_rows(dir, POSES)?;
@@ -251,6 +257,7 @@ impl Dataset {
             ev_map,
             transform,
             warnings,
+            manifest,
         })
     }
 

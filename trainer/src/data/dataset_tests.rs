@@ -225,26 +225,27 @@ fn methods_without_events_take_the_datasets_thresholds_for_edi() {
     let dir = copy("thresholds");
     let manifest = dir.join("dataset.toml");
     let text = std::fs::read_to_string(&manifest).unwrap();
-    let text = text.replacen("c_pos = 0.20000000298023224", "c_pos = 0.35", 1).replacen(
+    let text = text.replacen("c_pos = 0.20000000298023224", "c_pos = 0.375", 1).replacen(
         "c_neg = 0.20000000298023224",
-        "c_neg = 0.3",
+        "c_neg = 0.3125",
         1,
     );
     std::fs::write(&manifest, text).unwrap();
     let data = Dataset::load(&dir, &LoadOptions::default()).unwrap();
-    assert_eq!(crate::method::dataset_thresholds(&data), Some([0.35, 0.3]));
+    // (values exact in f32: the manifest stores the simulator's f32 thresholds)
+    assert_eq!(crate::method::dataset_thresholds(&data), Some([0.375, 0.3125]));
     let scale = crate::presets::Scale::Cpu;
     let preset = |name: &str| (crate::presets::preset(name).unwrap().build)(scale);
     // edi-nerf has no events section: its EDI images use the dataset's thresholds
     let edi = preset("edi-nerf");
     assert!(edi.events.is_none());
-    assert_eq!(crate::method::event_thresholds(&edi, &data), [0.35, 0.3]);
+    assert_eq!(crate::method::event_thresholds(&edi, &data), [0.375, 0.3125]);
     // a training threshold (the mismatch study) wins over the dataset's
     let mut ours = preset("ev-deblurnerf");
     ours.events.as_mut().unwrap().threshold = Some([0.25, 0.25]);
     assert_eq!(crate::method::event_thresholds(&ours, &data), [0.25, 0.25]);
     ours.events.as_mut().unwrap().threshold = None;
-    assert_eq!(crate::method::event_thresholds(&ours, &data), [0.35, 0.3]);
+    assert_eq!(crate::method::event_thresholds(&ours, &data), [0.375, 0.3125]);
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! The dataset loader: the Ev-DeblurBlender layout (`dataset-format.md`), read as the public
+//! The dataset loader: the Ev-DeblurBlender layout (`docs/dataset-format.md`), read as the public
 //! reference loader reads it, into the loader's world (LLFF poses converted, scaled by
 //! `1 / (0.75 min near)` and recentred on the average pose).
 //!

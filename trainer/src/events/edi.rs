@@ -479,6 +479,7 @@ mod tests {
             ev_map: None,
             transform: WorldTransform { scale: 1.0, avg_rotation: DMat3::IDENTITY, avg_center: DVec3::ZERO },
             warnings: vec![],
+            manifest: None,
         }
     }
 

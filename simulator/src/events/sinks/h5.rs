@@ -1,6 +1,6 @@
 //! HDF5 event files, written with the pure-Rust `rust-hdf5` crate (no libhdf5 needed).
 //!
-//! - [`NerfH5Sink`] (Ev-DeblurNeRF, `docs: dataset-format.md`): root datasets `x` u16, `y` u16,
+//! - [`NerfH5Sink`] (Ev-DeblurNeRF, `docs/dataset-format.md`): root datasets `x` u16, `y` u16,
 //!   `t` i64 (ns, the frame clock), `p` i8 (+1 ON, -1 OFF; the loader accepts {-1, +1} or {0, 1}).
 //! - [`DsecH5Sink`] (DSEC): `/events/x` u16, `/events/y` u16, `/events/t` u32 (us since
 //!   `t_offset`), `/events/p` u8 (1 ON, 0 OFF); `/t_offset` i64 scalar (us, the first event's time

@@ -146,7 +146,7 @@ fn measure(sim: &simulator::dataset::Plan, dir: &Path, results: &Path) -> Result
         index: Vec::new(),
         scene: String::new(),
         dir: dir.to_owned(),
-        events: events as u64,
+        events,
         events_per_second: events as f64 / seconds,
         events_per_pixel: events as f64 / pixels,
         blur_mean_px: blur.mean,

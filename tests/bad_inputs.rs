@@ -26,7 +26,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
-use evblur_tests::{temp_dir, workspace_binary};
+use evblur_tests::{copy_dir, temp_dir, workspace_binary};
 use rayon::prelude::*;
 use serde_json::{json, Value};
 
@@ -766,18 +766,6 @@ fn base_dataset() -> &'static Path {
         run_ok(evsim(), &args);
         dir
     })
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &to.join(e.file_name()));
-        } else {
-            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-        }
-    }
 }
 
 /// Small-model `evtrain train` flags: seconds per run.

@@ -20,7 +20,7 @@ use benchmark::matrix::{MatrixPlan, Shard};
 use benchmark::metrics::CellMetrics;
 use benchmark::run::{self, CellStatus, RunOptions, RunSummary};
 use benchmark::table::{self, format, Form};
-use evblur_tests::temp_dir;
+use evblur_tests::{copy_dir, temp_dir};
 
 /// Iterations per cell.
 const ITERATIONS: u64 = 12;
@@ -157,19 +157,6 @@ fn a_finished_matrix_is_skipped_without_rewriting_anything() {
     let s = run(a, Shard::ALL, None);
     assert_eq!((s.cells, s.skipped, s.trained, s.resumed, s.scored, s.simulated), (4, 4, 0, 0, 0, 0), "{s:?}");
     assert_eq!(mtimes(&a.results), before);
-}
-
-/// Copies the folder `from` to `to`.
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &to.join(e.file_name()));
-        } else {
-            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-        }
-    }
 }
 
 /// LPIPS weights with smooth pseudo-random values in the format of `benchmark::lpips::weights`

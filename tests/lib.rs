@@ -105,3 +105,16 @@ pub fn workspace_binary(package: &str, bin: &str) -> std::path::PathBuf {
     assert!(exe.is_file(), "{} is missing after the build", exe.display());
     exe
 }
+
+/// Copies the files of `from` (recursively) into `to`, creating the folders.
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
+        } else {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}

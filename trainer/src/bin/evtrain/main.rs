@@ -336,7 +336,7 @@ fn train(
             }
             eprintln!("\nstopping after this step (checkpoint follows); Ctrl-C again to quit now");
         })
-        .context("cannot install the Ctrl-C handler")?;
+        .context("cannot install the Ctrl-C / SIGTERM handler")?;
     }
     let rows = trainer.train(&run, &TrainOptions { progress: !quiet, stop: Some(&stop), ..TrainOptions::default() })?;
     let last = rows.last();

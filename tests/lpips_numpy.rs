@@ -19,7 +19,7 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use benchmark::lpips::Lpips;
-use evblur_tests::{python_with, run_python, temp_dir, write_npy_f32};
+use evblur_tests::{python_with, rel_err, run_python, temp_dir, write_npy_f32};
 use simulator::render::sampling::Rng;
 
 /// Agreement required with numpy, relative to the numpy value.
@@ -147,15 +147,6 @@ fn numpy_reference(py: &Path, weights: &Path, dir: &Path, cases: &[Case]) -> Vec
             (r["distance"].as_f64().unwrap(), layers)
         })
         .collect()
-}
-
-/// `|ours - want| / |want|`, or the absolute difference when `want` is 0.
-fn rel_err(ours: f64, want: f64) -> f64 {
-    if want == 0.0 {
-        ours.abs()
-    } else {
-        ((ours - want) / want).abs()
-    }
 }
 
 #[test]

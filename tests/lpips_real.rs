@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use benchmark::lpips::{weights_path, Lpips, INSTALL_HINT};
-use evblur_tests::{python_with, temp_dir, write_npy_f32};
+use evblur_tests::{python_with, rel_err, temp_dir, write_npy_f32};
 use simulator::render::sampling::Rng;
 
 /// Agreement required with numpy, relative to the numpy value.
@@ -136,14 +136,6 @@ fn numpy_reference(py: &Path, ckpt: &Path, dir: &Path, pairs: &[(String, Img, Im
     let reference: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let terms = |r: &serde_json::Value| r["layers"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     reference.as_array().unwrap().iter().map(|r| (r["distance"].as_f64().unwrap(), terms(r))).collect()
-}
-
-fn rel_err(ours: f64, want: f64) -> f64 {
-    if want == 0.0 {
-        ours.abs()
-    } else {
-        ((ours - want) / want).abs()
-    }
 }
 
 #[test]

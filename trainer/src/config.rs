@@ -118,6 +118,11 @@ pub struct EventLossConfig {
     /// thresholds, summed; `None`: single events (one hop, the reference default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub window: Option<[u32; 2]>,
+    /// Longest event window (ms): a window stops before an event more than this long after
+    /// its first event (its first hop is always taken, so a pair is never lost); `None`: no
+    /// limit. Only with `window`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_ms: Option<f64>,
     /// Saturated pairs: drop a pair when its rendered luma (the linear colour, before the
     /// eCRF) reaches this value at either end, where a sigmoid colour cannot follow the
     /// events' change; `None`: every pair counts (docs/trainer.md, "radiance above 1").
@@ -144,6 +149,7 @@ impl EventLossConfig {
             colour: false,
             inside_exposures: false,
             window: None,
+            window_ms: None,
             saturation: None,
         }
     }
@@ -285,6 +291,14 @@ impl TrainConfig {
                     return Err("events.window with events.inside_exposures = true: windows of events inside exposures are not supported; drop one of them".into());
                 }
             }
+            if let Some(ms) = e.window_ms {
+                if !(ms.is_finite() && ms > 0.0) {
+                    return Err(format!("events.window_ms = {ms}; it must be a positive number of milliseconds"));
+                }
+                if e.window.is_none() {
+                    return Err("events.window_ms without events.window: it limits event windows; set events.window = [min, max] too, or drop it".into());
+                }
+            }
             let mut checks = vec![("events.weight", e.weight, true)];
             if let Some([on, off]) = e.threshold {
                 checks.extend([("events.threshold[0]", on, false), ("events.threshold[1]", off, false)]);
@@ -406,6 +420,9 @@ mod tests {
             (&["events.window=[4, 2]"][..], "1 <= min <= max"),
             (&["events.window=[1, 5000]"][..], "<= 1000"),
             (&["events.window=[1, 4]", "events.inside_exposures=true"][..], "inside_exposures"),
+            (&["events.window=[2, 8]", "events.window_ms=0"][..], "events.window_ms = 0"),
+            (&["events.window=[2, 8]", "events.window_ms=nan"][..], "events.window_ms = NaN"),
+            (&["events.window_ms=4"][..], "without events.window"),
             (&["events.saturation=0"][..], "events.saturation = 0"),
             (&["events.saturation=nan"][..], "events.saturation = NaN"),
             (&["batch_rays"][..], "KEY=VALUE"),

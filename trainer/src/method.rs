@@ -199,20 +199,22 @@ pub fn event_candidates(data: &Dataset, train_views: &[usize], inside_exposures:
 }
 
 /// The end of an event window: from event `j`, up to `hops` events on at its pixel (fewer
-/// where the pixel's events, or those inside the trajectory (`contains`), end first), and the
-/// target log change, the hopped events' polarities times `threshold` (ON, OFF) summed. None
-/// when `j` has no successor.
+/// where the pixel's events, or those inside the trajectory (`contains`) and at most
+/// `max_span_us` after event `j`, end first), and the target log change, the hopped events'
+/// polarities times `threshold` (ON, OFF) summed. None when `j` has no successor.
 pub fn event_window(
     ev: &Events,
     contains: impl Fn(f64) -> bool,
     j: usize,
     hops: u32,
+    max_span_us: f64,
     threshold: [f32; 2],
 ) -> Option<(usize, f32)> {
     let (mut k, mut counts) = (j, [0u32; 2]);
+    let t0 = ev.t_us[j];
     for h in 0..hops {
         // the first successor is the caller's to check (candidates are inside the trajectory)
-        match ev.successor(k).filter(|&n| h == 0 || contains(ev.t_us[n])) {
+        match ev.successor(k).filter(|&n| h == 0 || (contains(ev.t_us[n]) && ev.t_us[n] - t0 <= max_span_us)) {
             Some(n) => {
                 k = n;
                 counts[usize::from(ev.polarity[n] < 0)] += 1;
@@ -746,7 +748,9 @@ pub fn step(
                 Some([lo, _]) => lo,
                 None => 1,
             };
-            let (k, target) = event_window(ev, |t| data.trajectory.contains(t), j, hops, [th_on as f32, th_off as f32])
+            let span_us = evc.and_then(|e| e.window_ms).map_or(f64::INFINITY, |ms| ms * 1e3);
+            let inside = |t: f64| data.trajectory.contains(t);
+            let (k, target) = event_window(ev, inside, j, hops, span_us, [th_on as f32, th_off as f32])
                 .expect("candidates have successors");
             picks.push(Pick::Event { j, k, target });
         }

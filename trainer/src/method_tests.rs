@@ -434,16 +434,20 @@ fn an_event_window_hops_up_to_its_count_and_sums_polarities_times_thresholds() {
     let th = [0.25f32, 0.2];
     let all = |_: f64| true;
     // one hop: the successor's polarity times its threshold, exactly
-    assert_eq!(event_window(&ev, all, 0, 1, th), Some((1, 0.25)));
-    assert_eq!(event_window(&ev, all, 1, 1, th), Some((2, -0.2)));
+    assert_eq!(event_window(&ev, all, 0, 1, f64::INFINITY, th), Some((1, 0.25)));
+    assert_eq!(event_window(&ev, all, 1, 1, f64::INFINITY, th), Some((2, -0.2)));
     // three hops from event 0: + - + = 2 * 0.25 - 0.2
-    let (k, target) = event_window(&ev, all, 0, 3, th).unwrap();
+    let (k, target) = event_window(&ev, all, 0, 3, f64::INFINITY, th).unwrap();
     assert_eq!(k, 3);
     assert!((target - 0.3).abs() < 1e-6, "{target}");
     // the pixel's events end first: four hops at most from event 0
-    assert_eq!(event_window(&ev, all, 0, 9, th).map(|w| w.0), Some(4));
+    assert_eq!(event_window(&ev, all, 0, 9, f64::INFINITY, th).map(|w| w.0), Some(4));
     // the trajectory ends first (at 5 ms): the window stops at event 3
-    assert_eq!(event_window(&ev, |t| t <= 5e3, 0, 9, th).map(|w| w.0), Some(3));
+    assert_eq!(event_window(&ev, |t| t <= 5e3, 0, 9, f64::INFINITY, th).map(|w| w.0), Some(3));
+    // at most 2.5 ms after event 0: events 1 and 2 (1 and 2 ms), not 3 (3 ms)
+    assert_eq!(event_window(&ev, all, 0, 9, 2.5e3, th).map(|w| w.0), Some(2));
+    // the first hop is always taken, however far: event 3 (3 ms) to 4 (10 ms)
+    assert_eq!(event_window(&ev, all, 3, 9, 1.0, th), Some((4, 0.25)));
     // no successor, no window
-    assert_eq!(event_window(&ev, all, 4, 2, th), None);
+    assert_eq!(event_window(&ev, all, 4, 2, f64::INFINITY, th), None);
 }

@@ -363,7 +363,12 @@ pub fn e2nerf(scale: Scale) -> TrainConfig {
     let k = if scale == Scale::Paper { 9 } else { 5 };
     TrainConfig {
         blur: Some(BlurConfig { trajectory: Some(TrajectoryConfig { k, learned: false }), ..blur_only(0) }),
-        events: base.events.clone().map(|e| EventLossConfig { inside_exposures: true, window: None, ..e }),
+        events: base.events.clone().map(|e| EventLossConfig {
+            inside_exposures: true,
+            window: None,
+            window_ms: None,
+            ..e
+        }),
         ecrf: None,
         edi: None,
         ..base

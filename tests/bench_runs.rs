@@ -287,6 +287,11 @@ fn the_evbench_binary_lists_runs_tabulates_and_explains_mistakes() {
         assert!(out_dir.join(format!("table1.{ext}")).is_file(), "table1.{ext}");
     }
     assert_eq!(std::fs::read_to_string(out_dir.join("table1.csv")).unwrap(), csv(&a.results));
+    // the picture: per test view, the input, both methods' renders and the ground truth
+    let picture = image::open(out_dir.join("table1-tiny.png")).expect("table1-tiny.png").to_rgb8();
+    // (panels enlarged to at least 240 pixels wide, 6-pixel gaps: input, nerf, ev-deblurnerf, truth)
+    let w = picture.width() - 6;
+    assert!(w.is_multiple_of(4) && w / 4 >= 246, "four panels side by side: {:?}", picture.dimensions());
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("table1.manifest.json")).unwrap()).unwrap();
     assert_eq!(manifest["cells"].as_array().unwrap().len(), 4);

@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 
 use evblur_tests::temp_dir;
 use glam::Vec3;
+use simulator::base::image::Image;
 use simulator::dataset::fidelity::{measure, FidelityOptions};
 use simulator::dataset::{Overrides, Plan};
-use simulator::render::film::Image;
 
 /// A 10 x 10 m textured floor (smooth sinusoidal albedo) and, with `lamp`, a small emitter
 /// above it and a box casting a soft shadow; the camera looks down from 2 m and slides sideways

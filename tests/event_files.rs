@@ -11,10 +11,10 @@ use std::path::{Path, PathBuf};
 
 use evblur_tests::{python_with, run_python, temp_dir};
 use glam::Vec3;
+use simulator::base::image::Image;
 use simulator::events::sinks::{EventWriter, H5Layout, SinkKind, VizConfig};
 use simulator::events::{run_on_frames, Event, EventConfig, EventSink, FramesJob, TimeUnit};
 use simulator::image_io::write_image;
-use simulator::render::film::Image;
 
 /// `n` time-sorted events with ties, both polarities and ~29 ms of span from `t0` ns; the Python
 /// check rebuilds the same list.

@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 
 use benchmark::lpips::Lpips;
 use evblur_tests::{python_with, rel_err, run_python, temp_dir, write_npy_f32};
-use simulator::render::sampling::Rng;
+use simulator::base::sampling::Rng;
 
 /// Agreement required with numpy, relative to the numpy value.
 const REL_TOL: f64 = 1e-4;

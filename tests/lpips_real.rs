@@ -19,7 +19,7 @@ use std::process::Command;
 
 use benchmark::lpips::{weights_path, Lpips, INSTALL_HINT};
 use evblur_tests::{python_with, rel_err, temp_dir, write_npy_f32};
-use simulator::render::sampling::Rng;
+use simulator::base::sampling::Rng;
 
 /// Agreement required with numpy, relative to the numpy value.
 const REL_TOL: f64 = 1e-4;

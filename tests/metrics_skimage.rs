@@ -12,7 +12,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use evblur_tests::{python_with, temp_dir, write_npy_f32};
-use simulator::render::sampling::Rng;
+use simulator::base::sampling::Rng;
 use trainer::metrics::{psnr, ssim, ImageRef};
 
 /// Agreement required with skimage (absolute, PSNR in dB and SSIM).

@@ -17,10 +17,11 @@ use trainer::data::dataset::{Dataset, LoadOptions};
 use trainer::diagnose;
 use trainer::engine::model::Model;
 use trainer::eval::evaluate;
+use trainer::method::rays::response;
 use trainer::method::{Method, StepData};
 use trainer::metrics::{self, ImageRef};
 use trainer::presets::{self, Preset, Scale, PRESETS};
-use trainer::train::{response, LogRow, RunPaths, TrainOptions, Trainer};
+use trainer::train::{LogRow, RunPaths, TrainOptions, Trainer};
 
 /// Folder of this test binary's files (dataset, runs).
 fn root() -> &'static Path {
@@ -62,7 +63,7 @@ fn dataset() -> &'static Dataset {
 /// records it); everything else (fields, samples, rates) as the preset.
 fn small(preset: &Preset, iterations: u64) -> TrainConfig {
     let mut c = (preset.build)(Scale::Cpu);
-    c.model.bounds = Some(trainer::train::scene_bounds(dataset()));
+    c.model.bounds = Some(trainer::method::rays::scene_bounds(dataset()));
     c.iterations = iterations;
     c.batch_rays = 256;
     c.model.coarse_volume.res = 32;
@@ -334,6 +335,38 @@ fn saturated_pairs_are_dropped_from_the_event_loss_and_only_those() {
     }
 }
 
+#[test]
+fn dark_pairs_are_dropped_and_a_huber_loss_only_changes_large_residuals() {
+    let e_nerf = presets::preset("e-nerf").expect("the e-nerf preset");
+    let cfg = small(e_nerf, 3);
+    let with = |dark: Option<f64>, huber: Option<f64>, weight: f64| {
+        let mut c = cfg.clone();
+        let e = c.events.as_mut().unwrap();
+        (e.dark, e.huber, e.weight) = (dark, huber, weight);
+        c
+    };
+    let runs = ["dark-none", "dark-low", "dark-high", "dark-weight-0", "huber-high", "huber-low"].map(run_dir);
+    let every = train(&with(None, None, 0.1), None, &runs[0], None);
+    // a limit below every rendered luma (a sigmoid is > 0) drops nothing: the same bytes
+    train(&with(Some(1e-30), None, 0.1), None, &runs[1], None);
+    assert!(checkpoint_bytes(&runs[0]) == checkpoint_bytes(&runs[1]), "a dark limit of 1e-30 dropped pairs");
+    // a limit above every rendered luma drops every pair: the training of a zero event weight
+    let none = train(&with(Some(1e9), None, 0.1), None, &runs[2], None);
+    train(&with(None, None, 0.0), None, &runs[3], None);
+    assert!(none.iter().all(|r| r.event_loss == 0.0), "{none:?}");
+    assert!(checkpoint_bytes(&runs[2]) == checkpoint_bytes(&runs[3]), "dropped dark pairs still train the field");
+    // a transition no residual reaches is the square, bit for bit; a small one trains otherwise
+    train(&with(None, Some(1e9), 0.1), None, &runs[4], None);
+    assert!(checkpoint_bytes(&runs[0]) == checkpoint_bytes(&runs[4]), "huber = 1e9 is not the square");
+    let huber = train(&with(None, Some(1e-3), 0.1), None, &runs[5], None);
+    assert!(checkpoint_bytes(&runs[0]) != checkpoint_bytes(&runs[5]), "huber = 1e-3 trains as the square");
+    // (the first step's loss is the same field's: linear beyond 1e-3, so far below the square)
+    assert!(huber[0].event_loss > 0.0 && huber[0].event_loss < every[0].event_loss, "{huber:?} vs {every:?}");
+    for run in runs {
+        std::fs::remove_dir_all(&run.dir).unwrap();
+    }
+}
+
 /// Scores of the windows between the dataset's consecutive sharp frames: the frames' own
 /// (the oracle) and a field's with `params`, all window pixels.
 fn window_scores(cfg: &TrainConfig, params: &[f32]) -> (diagnose::Report, diagnose::Report) {
@@ -485,7 +518,7 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
     assert_eq!(log_rows(&run).len(), 4);
     // The run records the volume box fitted to the dataset.
     let mut model_cfg = (nerf().build)(Scale::Cpu).model;
-    model_cfg.bounds = Some(trainer::train::scene_bounds(dataset()));
+    model_cfg.bounds = Some(trainer::method::rays::scene_bounds(dataset()));
     let layout = Model::new(&model_cfg).layout;
     assert_eq!(Checkpoint::load(&layout, &run.checkpoint()).unwrap().step, 4);
 

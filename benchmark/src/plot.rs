@@ -98,10 +98,15 @@ pub fn render_png(fig: &Figure) -> Result<Vec<u8>, BenchError> {
     let (w, h) = SIZE;
     let mut rgb = vec![255u8; (w * h * 3) as usize];
     draw(fig, &plan, &mut rgb).map_err(|e| err(format!("drawing failed: {e}")))?;
-    let img = image::RgbImage::from_raw(w, h, rgb).ok_or_else(|| err("pixel buffer has the wrong size".into()))?;
+    encode_png(w, h, rgb).map_err(err)
+}
+
+/// PNG bytes of a `w` x `h` RGB buffer (3 bytes per pixel, row-major).
+pub(crate) fn encode_png(w: u32, h: u32, rgb: Vec<u8>) -> Result<Vec<u8>, String> {
+    let img = image::RgbImage::from_raw(w, h, rgb).ok_or("pixel buffer has the wrong size")?;
     let mut png = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(|e| err(format!("encoding PNG: {e}")))?;
+        .map_err(|e| format!("encoding PNG: {e}"))?;
     Ok(png)
 }
 
@@ -112,7 +117,7 @@ pub fn write_png(fig: &Figure, path: &Path) -> Result<(), BenchError> {
 }
 
 /// Registers the embedded font once; false if it does not parse.
-fn font_registered() -> bool {
+pub(crate) fn font_registered() -> bool {
     static OK: OnceLock<bool> = OnceLock::new();
     *OK.get_or_init(|| register_font("sans-serif", FontStyle::Normal, FONT).is_ok())
 }

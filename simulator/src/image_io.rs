@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::render::film::Image;
-use crate::scene::texture::linear_to_srgb;
+use crate::base::colour::linear_to_srgb;
+use crate::base::image::Image;
 
 /// The temporary sibling a file is first written to.
 fn temp_path(path: &Path) -> PathBuf {
@@ -110,7 +110,7 @@ mod tests {
     fn png_uses_the_srgb_curve() {
         let mut img = Image::new(3, 1);
         img.pixels =
-            vec![Vec3::ZERO, Vec3::splat(crate::scene::texture::srgb_to_linear(128.0 / 255.0)), Vec3::splat(7.0)];
+            vec![Vec3::ZERO, Vec3::splat(crate::base::colour::srgb_to_linear(128.0 / 255.0)), Vec3::splat(7.0)];
         let png = image::load_from_memory(&encode_png(&img).unwrap()).unwrap().to_rgb8();
         assert_eq!(png.get_pixel(0, 0).0, [0, 0, 0]);
         assert_eq!(png.get_pixel(1, 0).0, [128, 128, 128]);

@@ -1,6 +1,8 @@
 //! evblur simulator: turns 3D scenes into images, events and (soon) event-camera datasets.
 //!
 //! What lives where:
+//! - [`base`]: what every part uses and that imports none of them: the linear-light image, the
+//!   random numbers and sampling routines, colour helpers.
 //! - [`scene`]: the in-memory scene (triangles, materials, textures, lights, environment, cameras)
 //!   and its loaders (glTF 2.0, OBJ/MTL, the `.toml` render description).
 //! - [`trajectory`]: camera trajectories (key poses, slerp + C1 cubic interpolation, frame times
@@ -23,6 +25,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` is deliberate: it is also true for NaN
 #![warn(missing_docs)]
 
+pub mod base;
 pub mod dataset;
 pub mod error;
 pub mod events;

@@ -23,9 +23,10 @@ use crate::engine::params::Layout;
 use crate::engine::renderer::SampleCounts;
 use crate::engine::rng::Rng;
 use crate::error::TrainError;
+use crate::method::rays::PreparedRay;
 use crate::method::Method;
 use crate::presets::{self, nerf, paper_model, Scale};
-use crate::train::{image_step, PreparedRay, StepBuffers, Trainer};
+use crate::train::{image_step, StepBuffers, Trainer};
 
 /// Timing of one benchmarked step shape.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

@@ -128,6 +128,15 @@ pub struct EventLossConfig {
     /// events' change; `None`: every pair counts (docs/trainer.md, "radiance above 1").
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub saturation: Option<f64>,
+    /// Dark pairs: drop a pair when its rendered linear luma is below this value at either
+    /// end, where `log(L + eps)` is steepest; `None`: every pair counts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dark: Option<f64>,
+    /// Robust event loss: the Huber loss with this transition (in log intensity) instead of the
+    /// square, so a pair the field cannot explain pulls with at most `2 huber`; `None`: the
+    /// squared error (the reference).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub huber: Option<f64>,
 }
 
 /// Most events an event window ([`EventLossConfig::window`]) hops.
@@ -151,6 +160,8 @@ impl EventLossConfig {
             window: None,
             window_ms: None,
             saturation: None,
+            dark: None,
+            huber: None,
         }
     }
 }
@@ -245,12 +256,8 @@ impl TrainConfig {
                 if k.k == 0 || k.embedding == 0 || k.hidden == 0 {
                     return Err("blur.kernel: k, embedding and hidden must be >= 1".into());
                 }
-                if k.k + 1 > crate::method::MAX_RAYS {
-                    return Err(format!(
-                        "blur.kernel.k = {}; at most {} warped rays",
-                        k.k,
-                        crate::method::MAX_RAYS - 1
-                    ));
+                if k.k + 1 > crate::blur::MAX_RAYS {
+                    return Err(format!("blur.kernel.k = {}; at most {} warped rays", k.k, crate::blur::MAX_RAYS - 1));
                 }
                 for (name, v) in [("blur.kernel.twist_scale", k.twist_scale), ("blur.kernel.init_scale", k.init_scale)]
                 {
@@ -269,8 +276,8 @@ impl TrainConfig {
             }
             if let Some(d) = &b.dsk {
                 d.validate()?;
-                if d.k + 1 > crate::method::MAX_RAYS {
-                    return Err(format!("blur.dsk.k = {}; at most {} kernel points", d.k, crate::method::MAX_RAYS - 1));
+                if d.k + 1 > crate::blur::MAX_RAYS {
+                    return Err(format!("blur.dsk.k = {}; at most {} kernel points", d.k, crate::blur::MAX_RAYS - 1));
                 }
             }
             if let Some(t) = &b.trajectory {
@@ -305,6 +312,12 @@ impl TrainConfig {
             }
             if let Some(limit) = e.saturation {
                 checks.push(("events.saturation", limit, false));
+            }
+            if let Some(limit) = e.dark {
+                checks.push(("events.dark", limit, false));
+            }
+            if let Some(delta) = e.huber {
+                checks.push(("events.huber", delta, false));
             }
             if let Some(eps) = e.log_eps {
                 checks.push(("events.log_eps", eps, false));
@@ -406,6 +419,8 @@ mod tests {
         // Event windows: a hop range, refused out of order, zero or with inside_exposures.
         assert_eq!(sets(&["events.window=[2, 8]"]).unwrap().events.unwrap().window, Some([2, 8]));
         assert_eq!(sets(&["events.saturation=0.95"]).unwrap().events.unwrap().saturation, Some(0.95));
+        let e = sets(&["events.dark=0.02", "events.huber=0.3"]).unwrap().events.unwrap();
+        assert_eq!((e.dark, e.huber), (Some(0.02), Some(0.3)));
         // The training images: EDI-deblurred, or an external program's.
         assert_eq!(sets(&["images=edi"]).unwrap().images, ImageSource::Edi);
         let c = sets(&[r#"images={deblur="mprnet {input} {output}"}"#]).unwrap();
@@ -425,6 +440,9 @@ mod tests {
             (&["events.window_ms=4"][..], "without events.window"),
             (&["events.saturation=0"][..], "events.saturation = 0"),
             (&["events.saturation=nan"][..], "events.saturation = NaN"),
+            (&["events.dark=-0.1"][..], "events.dark = -0.1"),
+            (&["events.huber=0"][..], "events.huber = 0"),
+            (&["events.huber=inf"][..], "events.huber = inf"),
             (&["batch_rays"][..], "KEY=VALUE"),
             (&["model.bounds={min=[0.0, 0.0, 0.0], max=[1.0, -1.0, 1.0]}"][..], "each min must be below its max"),
             (&["model.bounds={min=[0.0, 0.0, 0.0], max=[1.0, 1.0, nan]}"][..], "model.bounds"),

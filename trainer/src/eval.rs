@@ -11,8 +11,8 @@ use crate::data::dataset::Dataset;
 use crate::engine::model::Model;
 use crate::engine::renderer::{RayChunk, Renderer};
 use crate::error::TrainError;
+use crate::method::rays::{prepare, response, unzip, PreparedRay};
 use crate::metrics::{psnr, ssim, ImageRef};
-use crate::train::{prepare, response, unzip, PreparedRay};
 
 /// Scores of one test view.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

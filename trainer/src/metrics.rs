@@ -263,7 +263,7 @@ fn sub(s: &mut Sums, t: Sums) {
 
 #[cfg(test)]
 mod tests {
-    use simulator::render::sampling::Rng;
+    use simulator::base::sampling::Rng;
 
     use super::*;
 

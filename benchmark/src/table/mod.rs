@@ -15,7 +15,10 @@
 //!
 //! - [`format`](mod@format): Markdown, CSV and LaTeX.
 //! - [`manifest`]: what a table was made from (versions, commits, keys, seeds, machines, times).
+//! - [`figure`]: per scene, the blurry input, each row's render and the sharp ground truth of
+//!   the test views side by side.
 
+pub mod figure;
 pub mod format;
 pub mod manifest;
 

@@ -193,3 +193,88 @@ fn latex_escapes_names() {
     assert_eq!(latex_escape("a_b & 50%"), "a\\_b \\& 50\\%");
     assert_eq!(latex_escape("x=[0.3,0.3]"), "x=[0.3,0.3]");
 }
+
+/// A dataset folder with views 00-03 (test views 00 and 03), each image a flat colour of its
+/// index, sharp images a flat grey.
+fn picture_dataset(dir: &Path) {
+    for (sub, sharp) in [("images_1", false), ("images_sharp_1", true)] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+        for i in 0..4u8 {
+            let px = if sharp { [128, 128, 128] } else { [40 * i, 0, 0] };
+            image::RgbImage::from_pixel(30, 20, image::Rgb(px)).save(dir.join(sub).join(format!("0{i}.png"))).unwrap();
+        }
+    }
+}
+
+#[test]
+fn the_picture_shows_input_renders_and_ground_truth_per_test_view_or_says_why_not() {
+    let mut cells = vec![
+        cell("nerf", "factory", 0, (21.8, None, 0.70)),
+        cell("nerf", "factory", 1, (22.8, None, 0.70)),
+        cell("ev-deblurnerf", "factory", 0, (27.0, None, 0.85)),
+    ];
+    for m in &mut cells {
+        m.views = ["00.png", "03.png"]
+            .map(|n| metrics::ViewMetrics { name: n.into(), psnr: m.psnr + 1.0, ssim: 0.5, lpips: None })
+            .into();
+    }
+    let dir = results("picture", &cells);
+    let data = dir.join("datasets").join("d");
+    picture_dataset(&data);
+    for m in &cells {
+        let cell_dir = dir.join(&m.scene).join(&m.method).join(&m.key);
+        let preset = trainer::presets::preset(&m.preset).unwrap();
+        let record = crate::run::cell::RunRecord {
+            preset: m.preset.clone(),
+            scale: m.scale,
+            data: data.clone(),
+            config: (preset.build)(m.scale),
+            events_unit: Default::default(),
+        };
+        crate::run::cell::write_record(&record, &cell_dir.join("config.toml")).unwrap();
+        std::fs::create_dir_all(cell_dir.join("eval")).unwrap();
+        for v in ["00.png", "03.png"] {
+            let shade = (m.psnr * 5.0) as u8 + m.seed as u8;
+            image::RgbImage::from_pixel(30, 20, image::Rgb([0, shade, 0])).save(cell_dir.join("eval").join(v)).unwrap();
+        }
+    }
+    let t = build(&dir, Form::Table1, None).unwrap();
+    let rows = figure::scene_panels(&t, &dir, "factory").unwrap();
+    let labels: Vec<Vec<&str>> = rows.iter().map(|r| r.iter().map(|p| p.label.as_str()).collect()).collect();
+    // the nearest training view of 00 is 01, of 03 it is 02; nerf's first seed (0) is shown
+    assert_eq!(
+        labels[0],
+        ["blurry input (view 1)", "nerf 22.80 dB", "ev-deblurnerf 28.00 dB", "sharp ground truth (view 0)"]
+    );
+    assert_eq!(labels[1][0], "blurry input (view 2)");
+    assert_eq!(labels[1][3], "sharp ground truth (view 3)");
+    assert_eq!(rows[0][0].image.get_pixel(0, 0).0, [40, 0, 0]);
+    assert_eq!(rows[1][0].image.get_pixel(0, 0).0, [80, 0, 0]);
+    assert_eq!(rows[0][1].image.get_pixel(0, 0).0, [0, 109, 0], "nerf's seed-0 render");
+    assert_eq!(rows[0][3].image.get_pixel(0, 0).0, [128, 128, 128]);
+    let (written, skipped) = figure::write_all(&t, &dir, &dir).unwrap();
+    assert!(skipped.is_empty(), "{skipped:?}");
+    assert_eq!(written, [dir.join("table1-factory.png")]);
+    let png = image::open(&written[0]).unwrap().to_rgb8();
+    // 30-pixel panels enlarged 8x to 240, four columns and two rows with their label strips
+    assert_eq!(png.dimensions(), (6 + 4 * (240 + 6), 6 + 2 * (160 + 26 + 6)));
+    assert_eq!(png.get_pixel(6 + 10, 6 + 26 + 10).0, [40, 0, 0], "the input, enlarged, below its label");
+    assert!(
+        png.pixels().any(|p| p.0 != [255, 255, 255] && p.0[0] == p.0[1] && p.0[1] == p.0[2] && p.0[0] < 128),
+        "no label text"
+    );
+    // the same cells draw the same bytes
+    let again = figure::render_png(&figure::scene_panels(&t, &dir, "factory").unwrap()).unwrap();
+    assert_eq!(again, std::fs::read(&written[0]).unwrap());
+
+    // a dataset that is gone: no picture, and the note names the folder
+    std::fs::remove_dir_all(&data).unwrap();
+    std::fs::remove_file(&written[0]).unwrap();
+    let (written, skipped) = figure::write_all(&t, &dir, &dir).unwrap();
+    assert!(written.is_empty());
+    assert!(
+        skipped[0].contains("no picture of factory") && skipped[0].contains(&data.display().to_string()),
+        "{skipped:?}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

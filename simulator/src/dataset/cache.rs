@@ -21,8 +21,8 @@ use exr::prelude::f16;
 use super::plan::Plan;
 use super::settings::NoisePattern;
 use super::DatasetError;
+use crate::base::image::Image;
 use crate::image_io::{read_exr_raw, write_atomic};
-use crate::render::film::Image;
 
 /// A frame cache for one render key.
 #[derive(Clone, Debug)]

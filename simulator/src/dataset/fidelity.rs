@@ -39,8 +39,9 @@ use super::plan::Plan;
 use super::sequence::SequenceRenderer;
 use super::writer::render_settings;
 use super::{DatasetError, NoisePattern};
+use crate::base::image::Image;
 use crate::events::{Event, EventConfig, EventSimulator, NoiseConfig, VecSink};
-use crate::render::film::{Image, RenderSettings};
+use crate::render::film::RenderSettings;
 use crate::render::integrator::Renderer;
 
 /// What to measure.

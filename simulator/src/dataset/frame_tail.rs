@@ -19,10 +19,10 @@ use super::depth::{bounds, depth_grid};
 use super::plan::Plan;
 use super::writer::{image_name, write_png, write_sharp, DEPTH_STRIDE};
 use super::DatasetError;
+use crate::base::image::Image;
 use crate::events::{EventSimulator, VecSink};
 use crate::exposure::ExposureStack;
 use crate::render::accel::Accel;
-use crate::render::film::Image;
 use crate::trajectory::Pose;
 
 /// Frame `k` of the sequence, ready for the tail.

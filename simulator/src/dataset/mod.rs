@@ -2,6 +2,8 @@
 //!
 //! What lives where:
 //! - [`settings`]: the `[dataset]` table of a scene file and the command-line overrides.
+//! - [`description`]: the scene file as a dataset reads it (its `[trajectory]`, `[dataset]` and
+//!   `[events]` tables typed).
 //! - [`plan`]: scene file + overrides -> a checked [`Plan`] (frame clock, views, content keys).
 //! - [`cache`]: the half-float EXR frame cache (resume, and sweeps without re-rendering).
 //! - [`writer`]: the pipeline: frames -> events, exposure, sharp renders, metadata, manifest.
@@ -26,6 +28,7 @@ mod check_arrays;
 mod check_events;
 mod check_images;
 pub mod depth;
+pub mod description;
 pub mod error;
 pub mod fidelity;
 mod frame_tail;

@@ -132,20 +132,20 @@ pub struct DiffMap {
 impl DiffMap {
     /// The map drawn over `frame` (dimmed to grey): excess events in red, missing ones in blue
     /// (full colour from 2 events per block on), as a linear image of `frame`'s size.
-    pub fn overlay(&self, frame: &crate::render::film::Image) -> crate::render::film::Image {
+    pub fn overlay(&self, frame: &crate::base::image::Image) -> crate::base::image::Image {
         let (w, h) = (frame.width, frame.height);
         let pool = self.pool.max(1);
         let pixels = (0..w * h)
             .map(|i| {
                 let (x, y) = (i % w, i / w);
                 let b = ((y / pool) * self.width + x / pool) as usize;
-                let grey = 0.25 * crate::render::integrator::luminance(frame.pixels[i as usize]).clamp(0.0, 1.0);
+                let grey = 0.25 * crate::base::colour::luminance(frame.pixels[i as usize]).clamp(0.0, 1.0);
                 let level = |n: u32| (n as f32 / 2.0).min(1.0);
                 let (e, m) = (level(self.excess[b]), level(self.missing[b]));
                 glam::Vec3::new(grey + (1.0 - grey) * e, grey * (1.0 - e.max(m)), grey + (1.0 - grey) * m)
             })
             .collect();
-        crate::render::film::Image { width: w, height: h, pixels }
+        crate::base::image::Image { width: w, height: h, pixels }
     }
 }
 
@@ -169,7 +169,7 @@ pub struct NoiseReport {
     /// Where the events of [`NoiseReport::pipeline`] differ.
     pub pipeline_map: DiffMap,
     /// The segment's first frame as the dataset renders it (linear), to show the map on.
-    pub first_frame: crate::render::film::Image,
+    pub first_frame: crate::base::image::Image,
     /// With denoising on: the denoised frames at `spp` against *unfiltered* frames at `ref_spp`
     /// (what the filter changes besides noise shows up here, next to the reference's own noise).
     pub vs_unfiltered: Option<Comparison>,
@@ -199,7 +199,7 @@ struct Counted {
 
 /// What [`event_counts`] returns: the binned events, the renders made and their shaded
 /// samples, and the segment's first frame.
-type SequenceCounts = (Vec<Counted>, (usize, u64), crate::render::film::Image);
+type SequenceCounts = (Vec<Counted>, (usize, u64), crate::base::image::Image);
 
 /// Binned events of a sequence rendered at `spp` (`spp` in every pixel when `uniform`, else
 /// with the plan's adaptive sampling): `[as the dataset renders it, unfiltered]` (the second

@@ -18,11 +18,13 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
+use super::description;
 use super::settings::{DatasetConfig, Overrides};
 use super::DatasetError;
 use crate::events::EventConfig;
 use crate::exposure::{duration_ns_from_ms, FrameClock, ViewSpec};
-use crate::scene::{self, description, Scene};
+use crate::scene::description::FovAxis;
+use crate::scene::{self, Scene};
 use crate::trajectory::{frame_times, Trajectory, TrajectoryConfig};
 
 /// Bumped whenever the renderer or the pipeline changes what a frame or file contains, so that
@@ -248,7 +250,7 @@ impl Plan {
 
         // the camera: the description's [camera] (or the mesh file's first camera) gives the FOV
         if let Some(cam) = &desc.camera {
-            if let (description::FovAxis::X, Some(aspect)) = (cam.fov_axis, cam.aspect) {
+            if let (FovAxis::X, Some(aspect)) = (cam.fov_axis, cam.aspect) {
                 let want = config.width as f32 / config.height as f32;
                 if (aspect - want).abs() > 1e-3 * want {
                     return Err(bad(

@@ -18,8 +18,8 @@ use std::time::{Duration, Instant};
 use super::plan::Plan;
 use super::writer::render_settings;
 use super::DatasetError;
+use crate::base::image::Image;
 use crate::render::denoise::{denoise, DenoiseParams};
-use crate::render::film::Image;
 use crate::render::integrator::Renderer;
 use crate::render::temporal::{gather_sources, SequenceFrame, Source, TemporalParams};
 

@@ -23,8 +23,8 @@ use rayon::prelude::*;
 
 use super::sinks::{BackgroundWriter, SinkKind, VizConfig, VizSink, VizSummary};
 use super::{intensity, EventConfig, EventSimulator, EventSink, LogFrame, Sensor, Tee};
-use crate::render::film::Image;
-use crate::scene::texture::srgb_to_linear;
+use crate::base::colour::srgb_to_linear;
+use crate::base::image::Image;
 
 /// The unit of the numbers in a timestamps file.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]

@@ -2,7 +2,7 @@
 //!
 //! # Use
 //! Make an [`EventSimulator`] for the frame size with an [`EventConfig`], then feed it linear-RGB
-//! frames ([`Image`](crate::render::film::Image)) with strictly increasing integer-nanosecond
+//! frames ([`Image`](crate::base::image::Image)) with strictly increasing integer-nanosecond
 //! times through [`EventSimulator::step`]. Each call writes the events of the interval since the
 //! previous frame, globally time-sorted, to an [`EventSink`] ([`VecSink`] keeps them in memory)
 //! and returns [`FrameStats`]: the event counts and the adaptive-sampling hint. The model is pure:

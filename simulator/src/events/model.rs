@@ -8,8 +8,8 @@ use super::config::{EventConfig, MismatchMode, Refractory, RefractoryMode, Senso
 use super::noise;
 use super::sink::{Event, EventSink};
 use super::EventError;
-use crate::render::film::Image;
-use crate::render::sampling::Rng;
+use crate::base::image::Image;
+use crate::base::sampling::Rng;
 
 /// Rec.709 luma weights applied to linear RGB in [`Sensor::Mono`].
 pub const LUMA_709: Vec3 = Vec3::new(0.2126, 0.7152, 0.0722);

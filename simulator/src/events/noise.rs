@@ -1,7 +1,7 @@
 //! The random parts of the non-idealities, each drawn from the pixel's own seeded stream so
 //! that the output does not depend on the thread count or the processing order.
 
-use crate::render::sampling::{mix64, Rng};
+use crate::base::sampling::{mix64, Rng};
 
 /// Smallest threshold a mismatch draw may give (v2e and ESIM clamp to 0.01).
 pub const MIN_THRESHOLD: f32 = 0.01;

@@ -9,7 +9,7 @@
 use glam::Vec3;
 
 use super::{ExposureError, FrameClock, ViewSpec};
-use crate::render::film::Image;
+use crate::base::image::Image;
 
 /// A view waiting for its first frame or being accumulated.
 struct PendingView {

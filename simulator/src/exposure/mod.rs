@@ -30,7 +30,7 @@
 //! # Use
 //! ```
 //! use simulator::exposure::{CameraResponse, ExposureStack, FrameClock, ViewSpec};
-//! use simulator::render::film::Image;
+//! use simulator::base::image::Image;
 //! let ms = 1_000_000;
 //! let clock = FrameClock::new(0, ms, 100).unwrap(); // 100 frames at 1000 FPS
 //! let views = [ViewSpec::sharp(0, 10 * ms), ViewSpec::blurry(1, 50 * ms, 40 * ms)];

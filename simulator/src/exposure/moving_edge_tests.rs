@@ -11,7 +11,7 @@
 //! midpoint rule misplaces each crossing by at most `dt/2`, so `|error| <= dt / (2 tau)`.
 
 use super::*;
-use crate::render::film::Image;
+use crate::base::image::Image;
 use glam::Vec3;
 
 const MS: i64 = 1_000_000;

@@ -10,8 +10,8 @@ use std::io::Cursor;
 use serde::{Deserialize, Serialize};
 
 use super::ExposureError;
-use crate::render::film::Image;
-use crate::scene::texture::{linear_to_srgb, srgb_to_linear};
+use crate::base::colour::{linear_to_srgb, srgb_to_linear};
+use crate::base::image::Image;
 
 /// The curve from linear radiance to display values. In a config file:
 /// `response = { type = "gamma", gamma = 2.2 }`, `{ type = "srgb" }` or `{ type = "linear" }`.

@@ -8,7 +8,7 @@
 //!   renderers see directly) the two differ only by float rounding (~1e-7 relative), which is no
 //!   bias, while a real noiseless difference (>= 1e-3 relative) still scores |z| >= 100.
 
-use crate::render::film::Image;
+use crate::base::image::Image;
 
 /// Relative mean squared error of `x` against `gt` (same size), averaged over pixels and channels.
 pub fn rel_mse(x: &Image, gt: &Image) -> f64 {

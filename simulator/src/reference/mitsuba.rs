@@ -9,8 +9,8 @@ use std::process::Command;
 
 use anyhow::{bail, Context, Result};
 
+use crate::base::image::Image;
 use crate::image_io::read_exr;
-use crate::render::film::Image;
 
 /// The Mitsuba venv's Python, if there is one.
 pub fn python() -> Option<PathBuf> {

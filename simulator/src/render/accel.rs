@@ -195,7 +195,7 @@ fn barycentrics(tri: &RtTriangle, o: Vec3A, d: Vec3A) -> Vec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::sampling::{uniform_sphere, Rng};
+    use crate::base::sampling::{uniform_sphere, Rng};
 
     /// Brute-force closest hit by testing every triangle.
     fn brute(mesh: &TriangleMesh, o: Vec3, d: Vec3, tmax: f32) -> Option<(f32, u32)> {

@@ -9,7 +9,7 @@
 
 use glam::{Vec2, Vec3};
 
-use super::sampling::Rng;
+use crate::base::sampling::Rng;
 
 /// Settings of a chi-square test.
 #[derive(Clone, Copy, Debug)]
@@ -140,7 +140,7 @@ pub fn chi2_sf(x: f64, k: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::sampling::{cosine_hemisphere, cosine_hemisphere_pdf, uniform_sphere, UNIFORM_SPHERE_PDF};
+    use crate::base::sampling::{cosine_hemisphere, cosine_hemisphere_pdf, uniform_sphere, UNIFORM_SPHERE_PDF};
 
     #[test]
     fn chi2_sf_known_values() {

@@ -19,8 +19,9 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::film::Image;
-use super::integrator::{luminance, Features, MISS_DEPTH};
+use super::integrator::{Features, MISS_DEPTH};
+use crate::base::colour::luminance;
+use crate::base::image::Image;
 
 /// The filter's settings (SVGF's defaults).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -459,7 +460,7 @@ fn blur3_at(v: &[f32], w: usize, h: usize, x: usize, y: usize) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::sampling::Rng;
+    use crate::base::sampling::Rng;
 
     /// Features of a flat, camera-facing plane at depth `z` with reflectance `albedo`.
     fn plane(w: u32, h: u32, z: f32, albedo: Vec3, variance: f32) -> Features {

@@ -646,7 +646,7 @@ fn surface_cache_glossy_grids_keep_the_mean_ignore_thread_count_and_blend_keyfra
             let (x, y) = ((i % sk.width as usize) as u32, (i / sk.width as usize) as u32);
             (0..16).all(|j| vis.prim(x, y, j).is_some_and(|p| p >= first_box))
         };
-        let box_mean = |img: &crate::render::film::Image| {
+        let box_mean = |img: &crate::base::image::Image| {
             let px: Vec<Vec3> = (0..img.pixels.len()).filter(|&i| on_box(i)).map(|i| img.pixels[i]).collect();
             (px.iter().copied().sum::<Vec3>() / px.len() as f32, px.len())
         };
@@ -687,7 +687,7 @@ fn surface_cache_shadow_lattice_keeps_a_point_lights_shadow_edge_sharp() {
     // ones decide the pixels the edge crosses)
     let dark = surf.pixels.iter().filter(|p| p.x < 1e-4).count();
     let dark_truth = truth.pixels.iter().filter(|p| p.x < 1e-4).count();
-    let row = |img: &crate::render::film::Image| {
+    let row = |img: &crate::base::image::Image| {
         (0..32).map(|x| format!("{:.3}", img.get(x, 16).x)).collect::<Vec<_>>().join(" ")
     };
     assert!(

@@ -17,16 +17,11 @@
 //! probability 1/3 and weighting it by 3 would make sunlit pixels the noisiest of all (and, frame
 //! to frame, fire false events); evaluating it always costs one shadow ray per delta light.
 
+use crate::base::colour::luminance;
 use glam::{Vec2, Vec3};
 
-use super::sampling::{uniform_triangle, Distribution1D};
+use crate::base::sampling::{uniform_triangle, Distribution1D};
 use crate::scene::{Environment, PunctualLight, Scene};
-
-/// Luminance of linear Rec.709 RGB.
-#[inline]
-pub fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
-}
 
 /// One entry of the light table.
 #[derive(Clone, Copy, Debug)]
@@ -496,7 +491,7 @@ mod tests {
         let lights = Lights::new(&scene);
         // from the side the normal points away from, the ceiling's samples carry no radiance
         let behind = Vec3::new(0.0, 2.0, 0.0) - n * 1.5;
-        let mut r = crate::render::sampling::Rng::new(3, 4);
+        let mut r = crate::base::sampling::Rng::new(3, 4);
         for _ in 0..2000 {
             let u_sel = lights.distribution.cdf[0] + r.next_f32() * lights.distribution.pmf(0) * 0.999;
             if let Some(s) = lights.sample(&scene, behind, u_sel, r.next_2d()) {

@@ -1,14 +1,14 @@
 //! Turning a [`Scene`](crate::scene::Scene) into an image.
 //!
 //! - [`sampler`]: where a camera sample's numbers come from (independent or Owen-scrambled Sobol).
-//! - [`sampling`]: the per-sample RNG, warps, 1D/2D distributions, frames, MIS weights.
 //! - [`accel`]: the obvhs BVH over the scene's triangles; closest-hit and shadow queries.
 //! - [`raster`]: primary visibility by rasterisation (which triangle each camera sample sees).
 //! - [`radiance_cache`]: a world-space cache of reflected light that ends paths early.
 //! - [`bsdf`]: Lambert + GGX metallic-roughness (sample / eval / pdf).
 //! - [`lights`]: emissive triangles sampled by power, punctual lights, environment.
 //! - [`integrator`]: the unidirectional path tracer with next-event estimation and MIS.
-//! - [`film`]: the image buffer, the tiled parallel render loop and its settings.
+//! - [`film`]: the settings of one render (the random numbers, the image and colour helpers
+//!   are in [`crate::base`]).
 //! - [`denoise`]: the feature-guided À-Trous denoiser applied to dataset frames.
 //! - [`temporal`]: reprojection of neighbouring frames' lighting before the denoiser.
 //! - `chi2` (tests only): a chi-square goodness-of-fit test for direction samplers.
@@ -24,5 +24,4 @@ pub mod lights;
 pub mod radiance_cache;
 pub mod raster;
 pub mod sampler;
-pub mod sampling;
 pub mod temporal;

@@ -272,7 +272,7 @@ mod tests {
                 }
             }
             let l = Lattice { steps: r, values };
-            let mut rng = crate::render::sampling::Rng::new(r as u64, 1);
+            let mut rng = crate::base::sampling::Rng::new(r as u64, 1);
             for _ in 0..500 {
                 let mut b = rng.next_2d();
                 if b.x + b.y > 1.0 {

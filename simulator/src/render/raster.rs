@@ -396,8 +396,8 @@ fn push_tri(out: &mut Vec<RasterTri>, prim: u32, c: [Corner; 3], width: u32, hei
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::base::sampling::Rng;
     use crate::render::accel::{Accel, BvhPreset};
-    use crate::render::sampling::Rng;
     use glam::Vec3;
 
     /// Random offsets from a hash of the pixel, as a renderer's sampler would give them.

@@ -14,7 +14,7 @@
 //! Both are functions of (seed, pixel, frame, sample index) only, so images do not depend on
 //! the thread count.
 
-use super::sampling::{mix64, Rng};
+use crate::base::sampling::{mix64, Rng};
 
 /// Which generator a render uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize, serde::Deserialize)]
@@ -259,7 +259,7 @@ mod tests {
         assert_eq!(pts, vec![0.0, 0.5, 0.75, 0.25, 0.375, 0.875]);
         // the byte tables agree with the definition, and the reversed-domain path with the
         // plain Owen scramble of the plain Sobol point
-        let mut r = crate::render::sampling::Rng::new(5, 6);
+        let mut r = crate::base::sampling::Rng::new(5, 6);
         for _ in 0..10_000 {
             let (i, seed) = (r.next_u32(), r.next_u32());
             for d in 0..4 {

@@ -38,8 +38,9 @@ use exr::prelude::f16;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::film::Image;
-use super::integrator::{luminance, Features};
+use super::integrator::Features;
+use crate::base::colour::luminance;
+use crate::base::image::Image;
 use crate::scene::Camera;
 
 /// One rendered frame of a sequence, kept compact: its camera, the per-pixel record a window

@@ -1,5 +1,5 @@
 use super::*;
-use crate::render::sampling::Rng;
+use crate::base::sampling::Rng;
 
 const W: u32 = 64;
 const H: u32 = 48;

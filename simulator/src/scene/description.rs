@@ -21,8 +21,10 @@
 //! # rotate_y = 0.0               # degrees about +Y (default 0)
 //! ```
 //!
-//! Unknown keys are errors. Our [`Camera`] stores the vertical FOV, so with `fov_axis = "x"` the
-//! horizontal angle is converted with `yfov = 2 atan(tan(xfov / 2) / aspect)` (the formula of
+//! The dataset tables of the same file (`[trajectory]`, `[dataset]`, `[events]`) are accepted
+//! here and read by the dataset writer (`crate::dataset::description`). Unknown keys are
+//! errors. Our [`Camera`] stores the vertical FOV, so with `fov_axis = "x"` the horizontal angle
+//! is converted with `yfov = 2 atan(tan(xfov / 2) / aspect)` (the formula of
 //! [`Camera::yfov_from_xfov`]); render at that aspect ratio to get Mitsuba's framing.
 
 use std::path::{Path, PathBuf};
@@ -44,13 +46,13 @@ pub struct Description {
     pub camera: Option<CameraDesc>,
     /// Environment replacing the mesh file's.
     pub environment: Option<EnvironmentDesc>,
-    /// Camera path of a dataset (`evsim dataset`); ignored when rendering one image.
-    pub trajectory: Option<crate::trajectory::TrajectoryConfig>,
-    /// Dataset settings (resolution, frame rate, exposure, views, ...); see
-    /// [`crate::dataset::settings`].
-    pub dataset: Option<crate::dataset::settings::DatasetConfig>,
-    /// Event-camera settings of a dataset; see [`crate::events::EventConfig`].
-    pub events: Option<crate::events::EventConfig>,
+    /// Camera path of a dataset: accepted here, read by `evsim dataset`
+    /// (`crate::dataset::description`); ignored when rendering one image.
+    pub trajectory: Option<toml::Table>,
+    /// Dataset settings: accepted here, read by `evsim dataset`.
+    pub dataset: Option<toml::Table>,
+    /// Event-camera settings of a dataset: accepted here, read by `evsim dataset`.
+    pub events: Option<toml::Table>,
 }
 
 /// Which image axis `fov` spans.

@@ -34,8 +34,8 @@ use std::path::Path;
 
 use glam::{Mat3, Vec2, Vec3};
 
+use crate::base::sampling::{uniform_sphere, Distribution2D, UNIFORM_SPHERE_PDF};
 use crate::error::SceneError;
-use crate::render::sampling::{uniform_sphere, Distribution2D, UNIFORM_SPHERE_PDF};
 
 /// Light from infinitely far away, as a function of direction.
 #[derive(Clone, Debug, PartialEq)]
@@ -91,7 +91,7 @@ impl Environment {
     /// selection by power.
     pub fn power_integral(&self) -> f32 {
         match self {
-            Environment::Constant(c) => 4.0 * std::f32::consts::PI * crate::render::lights::luminance(*c),
+            Environment::Constant(c) => 4.0 * std::f32::consts::PI * crate::base::colour::luminance(*c),
             Environment::Map(m) => m.power_integral(),
         }
     }
@@ -259,7 +259,7 @@ impl EnvMap {
         for y in 0..h {
             let sin_theta = (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
             let row: f64 =
-                self.texels[y * w..(y + 1) * w].iter().map(|&t| crate::render::lights::luminance(t) as f64).sum();
+                self.texels[y * w..(y + 1) * w].iter().map(|&t| crate::base::colour::luminance(t) as f64).sum();
             sum += row * sin_theta * d_omega;
         }
         (sum * self.scale as f64) as f32
@@ -336,8 +336,8 @@ impl EnvMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::base::sampling::Rng;
     use crate::render::chi2::{chi2_test, Chi2Config};
-    use crate::render::sampling::Rng;
 
     /// A 64x32 map: a gradient from the top, plus a bright sun blob at (u, v) = (0.3, 0.3).
     fn sun_and_gradient(to_world: Mat3) -> EnvMap {

@@ -202,8 +202,8 @@ impl TextureLoader<'_> {
 mod tests {
     use super::super::gltf_fixture::{assert_close, base64, png, temp_dir, Doc};
     use super::super::gltf_load::load;
-    use super::super::texture::srgb_to_linear;
     use super::*;
+    use crate::base::colour::srgb_to_linear;
     use glam::{Vec2, Vec4};
 
     /// 2x2 RGBA8: a purple, a dark green, a half-transparent white, a dark blue-grey.

@@ -6,6 +6,7 @@
 //! centres sit at half-integer positions and `v = 0` is the first (top) row of the file, as in
 //! glTF.
 
+use crate::base::colour::srgb_to_linear;
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -115,25 +116,6 @@ struct Level {
 /// Most lookups one filtered lookup spreads along a stretched footprint (the ratio of its long
 /// to its short axis beyond which the footprint is treated as wider than it is).
 pub const MAX_ANISOTROPY: u32 = 8;
-
-/// The sRGB electro-optical transfer function: encoded value in `[0, 1]` to linear light.
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// Inverse of [`srgb_to_linear`]: linear light to the encoded value (input clamped to `[0, 1]`).
-pub fn linear_to_srgb(l: f32) -> f32 {
-    let l = l.clamp(0.0, 1.0);
-    if l <= 0.0031308 {
-        l * 12.92
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    }
-}
 
 impl Texture {
     /// A texture from an already-decoded image. With `srgb`, RGB (not alpha) is decoded from sRGB.
@@ -481,7 +463,7 @@ mod tests {
         let eight_bit: Vec<Vec4> = (0..w * h)
             .map(|i| Vec4::new(srgb_to_linear(bytes(i, 0)), srgb_to_linear(bytes(i, 1)), bytes(i, 2), -0.0))
             .collect();
-        let mut rng = crate::render::sampling::Rng::new(7, 0);
+        let mut rng = crate::base::sampling::Rng::new(7, 0);
         for (t, paletted) in [(Texture::new("8-bit", w, h, eight_bit), true), (noise(300, 2), false)] {
             for wrap in [WrapMode::Repeat, WrapMode::ClampToEdge, WrapMode::MirroredRepeat] {
                 let t = Texture { wrap_u: wrap, wrap_v: wrap, ..t.clone() };
@@ -528,14 +510,5 @@ mod tests {
                 }
             }
         }
-    }
-
-    #[test]
-    fn srgb_round_trip() {
-        for i in 0..=255 {
-            let c = i as f32 / 255.0;
-            assert!((linear_to_srgb(srgb_to_linear(c)) - c).abs() < 1e-5);
-        }
-        assert!((srgb_to_linear(0.5) - 0.214041).abs() < 1e-5);
     }
 }

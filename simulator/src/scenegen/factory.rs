@@ -21,7 +21,7 @@ use super::gltf_write::{MaterialDesc, PerspectiveCamera, SceneBuilder};
 use super::mesh;
 use super::texture::{self, Bricks, Fbm, Tiles, Wood};
 use super::GeneratedScene;
-use crate::render::sampling::Rng;
+use crate::base::sampling::Rng;
 use crate::scene::{PunctualLight, WrapMode};
 
 /// Camera of the first view (also written to the glTF file and the `[camera]` table).

@@ -163,7 +163,7 @@ mod tests {
             let dir = gltf_write::tests::temp_dir(spec.name);
             write_scene(&dir, &scene).unwrap();
             let toml = dir.join("scene.toml");
-            let desc = crate::scene::description::parse(&scene.toml, &toml).unwrap();
+            let desc = crate::dataset::description::parse(&scene.toml, &toml).unwrap();
             assert_eq!(desc.scene, Path::new("scene.gltf"));
             desc.trajectory.as_ref().expect("a dataset scene has a [trajectory]").resolve().unwrap();
             assert!(desc.dataset.is_some(), "{}: no [dataset] table", spec.name);

@@ -21,7 +21,7 @@ use super::gltf_write::{MaterialDesc, PerspectiveCamera, SceneBuilder};
 use super::mesh;
 use super::texture::{self, Fbm, Tiles};
 use super::GeneratedScene;
-use crate::render::sampling::Rng;
+use crate::base::sampling::Rng;
 use crate::scene::{PunctualLight, WrapMode};
 
 /// Vertical field of view (degrees).

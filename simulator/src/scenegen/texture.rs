@@ -12,7 +12,7 @@
 use glam::Vec2;
 use image::{Rgb, RgbImage};
 
-use crate::render::sampling::{mix64, Rng};
+use crate::base::sampling::{mix64, Rng};
 
 /// An sRGB colour as stored in the image.
 pub type Srgb = [u8; 3];

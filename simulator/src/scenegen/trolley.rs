@@ -22,7 +22,7 @@ use super::gltf_write::{MaterialDesc, MaterialId, PerspectiveCamera, SceneBuilde
 use super::mesh;
 use super::texture::{self, Bricks, Fbm, Srgb, Tiles};
 use super::GeneratedScene;
-use crate::render::sampling::Rng;
+use crate::base::sampling::Rng;
 use crate::scene::{PunctualLight, WrapMode};
 
 /// Camera of the first view (also the `[camera]` table).

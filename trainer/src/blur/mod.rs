@@ -11,3 +11,6 @@ pub mod dsk;
 pub mod rigid;
 pub mod se3;
 pub mod trajectory;
+
+/// Most rays a pixel group can have (the origin ray and up to 31 warped rays).
+pub const MAX_RAYS: usize = 32;

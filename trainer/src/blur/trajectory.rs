@@ -29,11 +29,11 @@ pub struct TrajectoryConfig {
 impl TrajectoryConfig {
     /// Checks the settings; the message names the field and the fix.
     pub fn validate(&self) -> Result<(), String> {
-        if self.k < 2 || self.k > crate::method::MAX_RAYS - 1 {
+        if self.k < 2 || self.k > crate::blur::MAX_RAYS - 1 {
             return Err(format!(
                 "blur.trajectory.k = {}; use 2 to {} virtual cameras (BAD-NeRF: 7)",
                 self.k,
-                crate::method::MAX_RAYS - 1
+                crate::blur::MAX_RAYS - 1
             ));
         }
         Ok(())

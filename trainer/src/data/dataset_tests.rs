@@ -233,7 +233,7 @@ fn methods_without_events_take_the_datasets_thresholds_for_edi() {
     std::fs::write(&manifest, text).unwrap();
     let data = Dataset::load(&dir, &LoadOptions::default()).unwrap();
     // (values exact in f32: the manifest stores the simulator's f32 thresholds)
-    assert_eq!(crate::method::dataset_thresholds(&data), Some([0.375, 0.3125]));
+    assert_eq!(crate::events::loss::dataset_thresholds(&data), Some([0.375, 0.3125]));
     let scale = crate::presets::Scale::Cpu;
     let preset = |name: &str| (crate::presets::preset(name).unwrap().build)(scale);
     // edi-nerf has no events section: its EDI images use the dataset's thresholds

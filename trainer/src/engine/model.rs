@@ -80,7 +80,7 @@ pub struct ModelConfig {
     #[serde(default)]
     pub dense: bool,
     /// The NDC box the volumes cover; `None` in a preset means "fit it to the dataset's
-    /// cameras" (`trainer::train::scene_bounds`), and a run records the resolved box.
+    /// cameras" (`trainer::method::rays::scene_bounds`), and a run records the resolved box.
     pub bounds: Option<Aabb>,
 }
 

@@ -197,11 +197,18 @@ fn lpips_pair(a: &Path, b: &Path, weights: Option<&Path>) -> Result<()> {
 }
 
 /// Builds the table of the finished cells under `results`, prints it as Markdown and writes
-/// the Markdown, CSV, LaTeX and manifest files into `out` (default `results`).
+/// the Markdown, CSV, LaTeX and manifest files and the per-scene pictures into `out` (default
+/// `results`).
 fn write_table(results: &Path, form: Form, selection: Option<&Selection>, out: Option<&Path>) -> Result<()> {
     let t = table::build(results, form, selection)?;
     print!("{}", table::format::markdown(&t));
-    let files = table::manifest::write_all(&t, results, out.unwrap_or(results))?;
+    let out = out.unwrap_or(results);
+    let mut files = table::manifest::write_all(&t, results, out)?;
+    let (pictures, skipped) = table::figure::write_all(&t, results, out)?;
+    files.extend(pictures);
+    for why in skipped {
+        println!("{why}");
+    }
     let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
     println!("{} cells; wrote {}", t.cells.len(), names.join(", "));
     Ok(())

@@ -33,6 +33,8 @@ use clap::{Args, Subcommand};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use simulator::base::image::Image;
+use simulator::base::sampling::{cosine_hemisphere, Frame, Rng};
 use simulator::events::{
     CountingSink, EventConfig, EventSimulator, MismatchMode, NoiseConfig, Photoreceptor, Refractory, RefractoryMode,
     ThresholdMismatch,
@@ -42,10 +44,9 @@ use simulator::image_io::read_exr;
 use simulator::reference::compare::rel_mse;
 use simulator::reference::mitsuba;
 use simulator::render::accel::{Accel, BvhPreset};
-use simulator::render::film::{Image, RenderSettings};
+use simulator::render::film::RenderSettings;
 use simulator::render::integrator::Renderer;
 use simulator::render::sampler::SamplerKind;
-use simulator::render::sampling::{cosine_hemisphere, Frame, Rng};
 use simulator::scene::{self, Camera, TriangleMesh};
 
 /// Which benchmark to run.

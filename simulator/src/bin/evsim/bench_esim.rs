@@ -22,9 +22,9 @@ use std::time::Instant;
 use anyhow::{bail, ensure, Context, Result};
 use clap::Args;
 
+use simulator::base::image::Image;
 use simulator::events::frames::{list_frames, read_frame, read_timestamps};
 use simulator::events::{Event, EventConfig, EventSimulator, EventSink, TimeUnit};
-use simulator::render::film::Image;
 
 use crate::bench::{bench_frame, bench_texture, median};
 

@@ -695,7 +695,7 @@ fn every_ablation_switch_trains_with_its_modules_active() {
             assert_eq!(r.event_loss > 0.0, cfg.events.is_some(), "{sets:?}: event loss {}", r.event_loss);
             assert_eq!(r.edi_loss > 0.0, cfg.edi.is_some(), "{sets:?}: EDI loss {}", r.edi_loss);
             // The AWP's colour loss is logged from the kernel's start (step 10) on.
-            let awp_on = cfg.blur.as_ref().is_some_and(|b| b.awp.is_some()) && r.step > 10;
+            let awp_on = cfg.blur.as_ref().is_some_and(|b| b.awp().is_some()) && r.step > 10;
             assert_eq!(r.awp_loss > 0.0, awp_on, "{sets:?}: step {} AWP loss {}", r.step, r.awp_loss);
         }
         let (first, last) = (
@@ -715,7 +715,7 @@ fn every_ablation_switch_trains_with_its_modules_active() {
         };
         assert!(moved("rbk.rot") && moved("rbk.embedding"), "{sets:?}: the blur kernel did not learn");
         assert_eq!(moved("ecrf"), cfg.ecrf.is_some(), "{sets:?}: eCRF learning");
-        let awp = cfg.blur.as_ref().and_then(|b| b.awp.as_ref());
+        let awp = cfg.blur.as_ref().and_then(|b| b.awp());
         assert_eq!(moved("awp.sample") && moved("awp.out"), awp.is_some(), "{sets:?}: AWP learning");
         assert_eq!(moved("awp.attention"), awp.is_some_and(|a| a.attention), "{sets:?}: AWP attention");
         assert_eq!(moved("coarse.vm"), cfg.model.explicit, "{sets:?}: volumes");

@@ -1,10 +1,7 @@
 //! Training configuration: everything a run needs besides the dataset, as one serde struct that
 //! a preset builds and a run folder records (`config.toml`). Unknown keys are rejected.
 
-use crate::blur::awp::AwpConfig;
-use crate::blur::dsk::DskConfig;
-use crate::blur::rigid::RigidConfig;
-use crate::blur::trajectory::TrajectoryConfig;
+pub use crate::blur::{BlurConfig, BlurModel};
 use crate::engine::adam::AdamConfig;
 use crate::engine::model::ModelConfig;
 use crate::events::ecrf::EcrfConfig;
@@ -66,27 +63,6 @@ pub struct TrainConfig {
     /// The event double integral prior (`None`: off).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub edi: Option<EdiConfig>,
-}
-
-/// The blur model (exactly one of `kernel`, `dsk`, `trajectory`) and when it starts.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BlurConfig {
-    /// DP-NeRF's rigid blurring kernel.
-    #[serde(default)]
-    pub kernel: Option<RigidConfig>,
-    /// First iteration that renders the blur model's rays (reference: 1200; before it, one
-    /// plain ray).
-    pub start: u64,
-    /// The adaptive weight proposal on the rigid kernel (`None`: the kernel's weights only).
-    #[serde(default)]
-    pub awp: Option<AwpConfig>,
-    /// Deblur-NeRF's deformable sparse kernel.
-    #[serde(default)]
-    pub dsk: Option<DskConfig>,
-    /// Virtual cameras inside the exposure (BAD-NeRF learned, E2NeRF fixed).
-    #[serde(default)]
-    pub trajectory: Option<TrajectoryConfig>,
 }
 
 /// The event loss, event by event (module `trainer::method`).
@@ -246,43 +222,7 @@ impl TrainConfig {
             }
         }
         if let Some(b) = &self.blur {
-            let models = [b.kernel.is_some(), b.dsk.is_some(), b.trajectory.is_some()];
-            if models.iter().filter(|&&m| m).count() != 1 {
-                return Err(
-                    "blur: set exactly one of blur.kernel, blur.dsk and blur.trajectory (or blur = none)".into()
-                );
-            }
-            if let Some(k) = &b.kernel {
-                if k.k == 0 || k.embedding == 0 || k.hidden == 0 {
-                    return Err("blur.kernel: k, embedding and hidden must be >= 1".into());
-                }
-                if k.k + 1 > crate::blur::MAX_RAYS {
-                    return Err(format!("blur.kernel.k = {}; at most {} warped rays", k.k, crate::blur::MAX_RAYS - 1));
-                }
-                for (name, v) in [("blur.kernel.twist_scale", k.twist_scale), ("blur.kernel.init_scale", k.init_scale)]
-                {
-                    if !(v.is_finite() && v >= 0.0) {
-                        return Err(format!("{name} = {v}; it must be a finite number >= 0"));
-                    }
-                }
-            }
-            if let Some(a) = &b.awp {
-                if b.kernel.is_none() {
-                    return Err(
-                        "blur.awp refines the rigid kernel's weights; set blur.kernel or blur.awp = none".into()
-                    );
-                }
-                a.validate()?;
-            }
-            if let Some(d) = &b.dsk {
-                d.validate()?;
-                if d.k + 1 > crate::blur::MAX_RAYS {
-                    return Err(format!("blur.dsk.k = {}; at most {} kernel points", d.k, crate::blur::MAX_RAYS - 1));
-                }
-            }
-            if let Some(t) = &b.trajectory {
-                t.validate()?;
-            }
+            b.validate()?;
         }
         if let Some(e) = &self.events {
             if e.batch == 0 {
@@ -450,5 +390,47 @@ mod tests {
             let err = sets(bad).unwrap_err();
             assert!(err.contains(says), "{bad:?}: {err}");
         }
+    }
+
+    #[test]
+    fn blur_holds_one_model_and_reads_and_writes_the_toml_form() {
+        let sets = |s: &[&str]| apply_overrides(&base(), &s.iter().map(|x| x.to_string()).collect::<Vec<_>>());
+        // The TOML keeps `start` beside the model's own table; the AWP sits beside the kernel.
+        let text = toml::to_string(&base()).unwrap();
+        let blur = &text[text.find("[blur]").expect("[blur] table")..];
+        assert!(blur.starts_with("[blur]\nstart = 320\n"), "{blur}");
+        assert!(text.contains("[blur.kernel]\nk = 5\n") && text.contains("[blur.awp]\n"), "{text}");
+        assert!(!text.contains("[blur.dsk]") && !text.contains("[blur.trajectory]"));
+        let back: TrainConfig = toml::from_str(&text).unwrap();
+        assert_eq!(back, base());
+        match &base().blur.unwrap().model {
+            BlurModel::Rigid { kernel, awp } => assert!(kernel.k == 5 && awp.is_some()),
+            other => panic!("ev-deblurnerf's blur model: {other:?}"),
+        }
+        // Switching models goes through `none`: the kernel and its AWP off, a trajectory on.
+        let c = sets(&["blur.kernel=none", "blur.awp=none", "blur.trajectory={k=5, learned=false}"]).unwrap();
+        let blur = c.blur.unwrap();
+        assert_eq!(blur.start, 320);
+        assert!(matches!(blur.model, BlurModel::Trajectory(t) if t.k == 5 && !t.learned));
+        let c = sets(&["blur.kernel.k=7"]).unwrap();
+        assert_eq!(c.blur.as_ref().and_then(|b| b.rigid()).map(|k| k.k), Some(7));
+        for (bad, says) in [
+            (&["blur.trajectory={k=5, learned=false}"][..], "exactly one of blur.kernel"),
+            (&["blur.kernel=none", "blur.awp=none"][..], "exactly one of blur.kernel"),
+            (&["blur.kernel=none"][..], "blur.awp refines the rigid kernel"),
+            (&["blur.kernel.k=0"][..], "blur.kernel: k, embedding and hidden"),
+            (&["blur.kernel.k=40"][..], "at most 31 warped rays"),
+            (&["blur.kernel.twist_scale=nan"][..], "blur.kernel.twist_scale = NaN"),
+            (&["blur.wobble=1"][..], "wobble"),
+        ] {
+            let err = sets(bad).unwrap_err();
+            assert!(err.contains(says), "{bad:?}: {err}");
+        }
+        let dsk = (preset("deblur-nerf").expect("preset").build)(Scale::Cpu);
+        assert!(dsk.blur.as_ref().is_some_and(|b| b.dsk().is_some() && b.rigid().is_none()));
+        let over = |s: &str| apply_overrides(&dsk, &[s.to_string()]);
+        assert!(over("blur.dsk.k=40").unwrap_err().contains("at most 31 kernel points"));
+        let kernel = "blur.kernel={k=5, embedding=32, hidden=32, twist_scale=0.1, init_scale=0.01}";
+        assert!(over(kernel).unwrap_err().contains("exactly one of blur.kernel"));
     }
 }

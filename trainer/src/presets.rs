@@ -12,7 +12,7 @@ use crate::blur::awp::AwpConfig;
 use crate::blur::dsk::DskConfig;
 use crate::blur::rigid::RigidConfig;
 use crate::blur::trajectory::TrajectoryConfig;
-use crate::config::{BlurConfig, EventLossConfig, ImageSource, TrainConfig};
+use crate::config::{BlurConfig, BlurModel, EventLossConfig, ImageSource, TrainConfig};
 use crate::engine::adam::AdamConfig;
 use crate::engine::field::FieldShape;
 use crate::engine::model::{ModelConfig, VolumeShape};
@@ -247,13 +247,10 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
     let edi = EdiConfig::reference_synthetic();
     match scale {
         Scale::Paper => TrainConfig {
-            blur: Some(BlurConfig {
-                kernel: Some(rigid_reference()),
-                start: 1200,
-                awp: Some(AwpConfig::reference()),
-                dsk: None,
-                trajectory: None,
-            }),
+            blur: Some(BlurConfig::new(
+                1200,
+                BlurModel::Rigid { kernel: rigid_reference(), awp: Some(AwpConfig::reference()) },
+            )),
             events: Some(EventLossConfig::reference()),
             ecrf: Some(EcrfConfig::reference()),
             edi: Some(edi),
@@ -262,13 +259,10 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
         Scale::Cpu => TrainConfig {
             batch_rays: 512,
             chunk_rays: 12,
-            blur: Some(BlurConfig {
-                kernel: Some(RigidConfig { k: 5, ..rigid_reference() }),
-                start: 320,
-                awp: Some(cpu_awp()),
-                dsk: None,
-                trajectory: None,
-            }),
+            blur: Some(BlurConfig::new(
+                320,
+                BlurModel::Rigid { kernel: RigidConfig { k: 5, ..rigid_reference() }, awp: Some(cpu_awp()) },
+            )),
             events: Some(EventLossConfig { batch: 512, ..EventLossConfig::reference() }),
             ecrf: Some(EcrfConfig { start: 320, ..EcrfConfig::reference() }),
             edi: Some(EdiConfig::reference_real()),
@@ -280,11 +274,6 @@ pub fn ev_deblurnerf(scale: Scale) -> TrainConfig {
 /// Ev-DeblurNeRF-- : [`ev_deblurnerf`] without the eCRF and the EDI prior.
 pub fn ev_deblurnerf_minus(scale: Scale) -> TrainConfig {
     TrainConfig { ecrf: None, edi: None, ..ev_deblurnerf(scale) }
-}
-
-/// A blur model on its own, starting at `start` (the rigid kernel's slots empty).
-fn blur_only(start: u64) -> BlurConfig {
-    BlurConfig { kernel: None, start, awp: None, dsk: None, trajectory: None }
 }
 
 /// The iteration at `paper` scale's `at` (of 30 000) scaled to the `cpu` budget (8000).
@@ -305,11 +294,11 @@ pub fn deblur_nerf(scale: Scale) -> TrainConfig {
     let base = nerf(scale);
     let dsk = DskConfig { align_until: base.iterations * 9 / 10, ..DskConfig::reference() };
     match scale {
-        Scale::Paper => TrainConfig { blur: Some(BlurConfig { dsk: Some(dsk), ..blur_only(1200) }), ..base },
+        Scale::Paper => TrainConfig { blur: Some(BlurConfig::new(1200, BlurModel::Dsk(dsk))), ..base },
         Scale::Cpu => TrainConfig {
             batch_rays: 256,
             chunk_rays: 12,
-            blur: Some(BlurConfig { dsk: Some(dsk), ..blur_only(cpu_iteration(1200)) }),
+            blur: Some(BlurConfig::new(cpu_iteration(1200), BlurModel::Dsk(dsk))),
             ..base
         },
     }
@@ -322,16 +311,11 @@ pub fn deblur_nerf(scale: Scale) -> TrainConfig {
 pub fn pdrf(scale: Scale) -> TrainConfig {
     let base = nerf(scale);
     match scale {
-        Scale::Paper => {
-            TrainConfig { blur: Some(BlurConfig { dsk: Some(DskConfig::pdrf()), ..blur_only(1200) }), ..base }
-        }
+        Scale::Paper => TrainConfig { blur: Some(BlurConfig::new(1200, BlurModel::Dsk(DskConfig::pdrf()))), ..base },
         Scale::Cpu => TrainConfig {
             batch_rays: 256,
             chunk_rays: 12,
-            blur: Some(BlurConfig {
-                dsk: Some(DskConfig { k: 5, ..DskConfig::pdrf() }),
-                ..blur_only(cpu_iteration(1200))
-            }),
+            blur: Some(BlurConfig::new(cpu_iteration(1200), BlurModel::Dsk(DskConfig { k: 5, ..DskConfig::pdrf() }))),
             ..base
         },
     }
@@ -342,15 +326,10 @@ pub fn pdrf(scale: Scale) -> TrainConfig {
 /// setting; cpu: 5, 256 pixels per step).
 pub fn bad_nerf(scale: Scale) -> TrainConfig {
     let base = nerf(scale);
-    let trajectory = |k| Some(TrajectoryConfig { k, learned: true });
+    let trajectory = |k| Some(BlurConfig::new(0, BlurModel::Trajectory(TrajectoryConfig { k, learned: true })));
     match scale {
-        Scale::Paper => TrainConfig { blur: Some(BlurConfig { trajectory: trajectory(7), ..blur_only(0) }), ..base },
-        Scale::Cpu => TrainConfig {
-            batch_rays: 256,
-            chunk_rays: 12,
-            blur: Some(BlurConfig { trajectory: trajectory(5), ..blur_only(0) }),
-            ..base
-        },
+        Scale::Paper => TrainConfig { blur: trajectory(7), ..base },
+        Scale::Cpu => TrainConfig { batch_rays: 256, chunk_rays: 12, blur: trajectory(5), ..base },
     }
 }
 
@@ -362,7 +341,7 @@ pub fn e2nerf(scale: Scale) -> TrainConfig {
     let base = ev_deblurnerf(scale);
     let k = if scale == Scale::Paper { 9 } else { 5 };
     TrainConfig {
-        blur: Some(BlurConfig { trajectory: Some(TrajectoryConfig { k, learned: false }), ..blur_only(0) }),
+        blur: Some(BlurConfig::new(0, BlurModel::Trajectory(TrajectoryConfig { k, learned: false }))),
         events: base.events.clone().map(|e| EventLossConfig {
             inside_exposures: true,
             window: None,

@@ -28,6 +28,24 @@ pub struct RigidConfig {
     pub init_scale: f64,
 }
 
+impl RigidConfig {
+    /// Checks the shape (the error names the `blur.kernel` key).
+    pub fn validate(&self) -> Result<(), String> {
+        if self.k == 0 || self.embedding == 0 || self.hidden == 0 {
+            return Err("blur.kernel: k, embedding and hidden must be >= 1".into());
+        }
+        if self.k + 1 > super::MAX_RAYS {
+            return Err(format!("blur.kernel.k = {}; at most {} warped rays", self.k, super::MAX_RAYS - 1));
+        }
+        for (name, v) in [("blur.kernel.twist_scale", self.twist_scale), ("blur.kernel.init_scale", self.init_scale)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!("{name} = {v}; it must be a finite number >= 0"));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The kernel's layers and the offset of the per-image embeddings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigidKernel {

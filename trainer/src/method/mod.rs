@@ -40,7 +40,7 @@ use crate::blur::awp::Awp;
 use crate::blur::dsk::Dsk;
 use crate::blur::rigid::RigidKernel;
 use crate::blur::trajectory::Trajectory;
-use crate::config::{ImageSource, TrainConfig};
+use crate::config::{BlurModel, ImageSource, TrainConfig};
 use crate::data::dataset::Dataset;
 use crate::data::image::RgbImage;
 use crate::engine::model::Model;
@@ -102,18 +102,20 @@ impl Method {
         let coarse_features = model.coarse.shape.features;
         let blur = cfg.blur.as_ref().map(|b| {
             let l = &mut model.layout;
-            match (&b.kernel, &b.dsk, &b.trajectory) {
-                (Some(k), _, _) => Blur::Rigid(RigidKernel::new(l, k, views)),
-                (None, Some(d), _) => Blur::Dsk(Dsk::new(l, d, views, coarse_features)),
-                (None, None, Some(t)) => Blur::Trajectory(Trajectory::new(l, t, views)),
-                (None, None, None) => unreachable!("validated: one blur model"),
+            match &b.model {
+                BlurModel::Rigid { kernel, .. } => Blur::Rigid(RigidKernel::new(l, kernel, views)),
+                BlurModel::Dsk(d) => Blur::Dsk(Dsk::new(l, d, views, coarse_features)),
+                BlurModel::Trajectory(t) => Blur::Trajectory(Trajectory::new(l, t, views)),
             }
         });
+        // The layout order (blur model, eCRF, AWP) is the checkpoints' parameter order.
         let ecrf = cfg.ecrf.as_ref().map(|c| Ecrf::new(&mut model.layout, c));
-        let awp = cfg.blur.as_ref().and_then(|b| {
-            let (a, k) = (b.awp.as_ref()?, b.kernel.as_ref()?);
-            let features = model.fine_field().shape.features;
-            Some(Awp::new(&mut model.layout, a, k.k + 1, features, k.embedding))
+        let awp = cfg.blur.as_ref().and_then(|b| match &b.model {
+            BlurModel::Rigid { kernel, awp: Some(a) } => {
+                let features = model.fine_field().shape.features;
+                Some(Awp::new(&mut model.layout, a, kernel.k + 1, features, kernel.embedding))
+            }
+            _ => None,
         });
         Method { model, blur, ecrf, awp }
     }

@@ -485,7 +485,7 @@ pub fn step(
                     by_view[view as usize].push(pg);
                 }
             }
-            let dc = cfg.blur.as_ref().and_then(|b| b.dsk.as_ref()).expect("DSK config");
+            let dc = &dsk.config;
             let align_scale =
                 if step < dc.align_until { (dc.align_weight / batch.pixels.max(1) as f64) as f32 } else { 0.0 };
             for (v, vk) in kernels.iter_mut().enumerate() {

@@ -6,7 +6,8 @@
 //! - [`engine`]: the CPU radiance-field engine (kernels, gradients, optimiser).
 //! - [`config`]: a run's settings; [`presets`]: the registry of named methods.
 //! - [`method`]: one training step of any method (blur kernel, event loss, eCRF, EDI);
-//!   [`train`]: the training loop; [`checkpoint`]: saved states; [`eval`]: test-view scores.
+//!   [`train`]: the training loop; [`run`]: opening a run folder (new, resumed) as
+//!   `evtrain` and `evbench` both do; [`checkpoint`]: saved states; [`eval`]: test-view scores.
 //! - [`blur`]: blur models (rigid kernel, AWP, the se(3) exponential map).
 //! - [`events`]: event supervision: the eCRF and the EDI prior.
 //! - [`deblur`]: pluggable image deblurring before training (a command per view, cached).
@@ -27,4 +28,5 @@ pub mod events;
 pub mod method;
 pub mod metrics;
 pub mod presets;
+pub mod run;
 pub mod train;

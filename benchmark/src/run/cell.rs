@@ -13,8 +13,8 @@ use std::time::Instant;
 
 use trainer::config::TrainConfig;
 use trainer::data::dataset::{Dataset, LoadOptions};
-use trainer::method::Method;
-use trainer::train::{RunPaths, TrainOptions, Trainer};
+use trainer::run::RunPlan;
+use trainer::train::{TrainOptions, Trainer};
 
 use super::evaluate::{means, score_views};
 use super::progress::Progress;
@@ -22,26 +22,6 @@ use crate::error::BenchError;
 use crate::lpips::Lpips;
 use crate::matrix::{Cell, MatrixPlan};
 use crate::metrics::{CellMetrics, Machine, FORMAT};
-
-pub use trainer::train::RunRecord;
-
-/// Reads a run's `config.toml` at `path`.
-pub fn read_record(path: &Path) -> Result<RunRecord, BenchError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| BenchError::results(path, format!("cannot read ({e}); check permissions")))?;
-    toml::from_str(&text).map_err(|e| {
-        BenchError::results(
-            path,
-            format!("not a run config ({}); delete the cell's folder to train it again", e.message()),
-        )
-    })
-}
-
-/// Writes `record` to `path` atomically.
-pub fn write_record(record: &RunRecord, path: &Path) -> Result<(), BenchError> {
-    let text = toml::to_string(record).map_err(|e| BenchError::results(path, format!("cannot encode ({e})")))?;
-    simulator::image_io::write_atomic(path, text.as_bytes()).map_err(|e| BenchError::results(path, format!("{e:#}")))
-}
 
 /// The last dataset loaded, kept for the next cell on the same scene.
 #[derive(Default)]
@@ -106,52 +86,39 @@ impl CellRun<'_> {
         let t0 = Instant::now();
         let (plan, method, scene) = (self.plan, &self.plan.methods[cell.method], &self.plan.scenes[cell.scene]);
         let dir = plan.cell_dir(cell);
-        let run = RunPaths::new(&dir);
         let label = format!("{}/{} s{}", scene.name, method.name, cell.seed);
         self.progress.cell_phase(&format!("{label} loading"));
         let data = datasets.get(data_dir, cell.config.needs_events())?;
         let data_abs = std::fs::canonicalize(data_dir)
             .map_err(|e| BenchError::results(data_dir, format!("cannot resolve the dataset folder ({e})")))?;
 
-        std::fs::create_dir_all(&dir)
-            .map_err(|e| BenchError::results(&dir, format!("cannot create the cell's folder ({e})")))?;
-        // one process per cell (shards sharing a results folder never run the same cell, but two
-        // runs of one matrix might)
-        let _lock = run.lock()?;
-        // The run record: the cell's own when it was started before, else a new one.
-        let (mut record, checkpoint) = if run.config().is_file() {
-            let mut record = read_record(&run.config())?;
-            if record.preset != method.preset.name {
-                return Err(BenchError::results(
-                    &run.config(),
-                    format!(
-                        "holds a run of preset {}, not {}; delete the cell's folder to train it again",
-                        record.preset, method.preset.name
-                    ),
-                ));
-            }
-            if record.data != data_abs {
-                // The results folder moved; the key says it is the same dataset.
-                record.data = data_abs;
-                write_record(&record, &run.config())?;
-            }
-            let layout = Method::new(&record.config, data.views.len());
-            let ck = run.resume_checkpoint(layout.layout(), record.config.checkpoint_every)?;
-            (record, ck)
-        } else {
-            // The thread count it starts with is recorded (evtrain resumes bit for bit with it).
-            let mut config = TrainConfig { threads: self.threads, ..cell.config.clone() };
-            trainer::method::resolve(&mut config, data);
-            let record = RunRecord {
-                preset: method.preset.name.to_string(),
-                scale: plan.scale,
-                data: data_abs,
-                config,
-                events_unit: Default::default(),
-            };
-            write_record(&record, &run.config())?;
-            (record, None)
+        // One process per cell (shards sharing a results folder never run the same cell, but two
+        // runs of one matrix might): the plan holds the folder's lock. The run record is the
+        // cell's own when it was started before, else a new one; the thread count it starts
+        // with is recorded (evtrain resumes bit for bit with it).
+        let new = || {
+            let config = TrainConfig { threads: self.threads, ..cell.config.clone() };
+            let preset = method.preset.name;
+            trainer::run::new_record(preset, plan.scale, data_abs.clone(), config, data, Default::default())
         };
+        let mut run_plan = RunPlan::open(&dir, new)?;
+        let record = &mut run_plan.record;
+        if record.preset != method.preset.name {
+            return Err(BenchError::results(
+                &run_plan.paths.config(),
+                format!(
+                    "holds a run of preset {}, not {}; delete the cell's folder to train it again",
+                    record.preset, method.preset.name
+                ),
+            ));
+        }
+        if record.data != data_abs {
+            // The results folder moved; the key says it is the same dataset.
+            record.data = data_abs;
+            run_plan.save_record()?;
+        }
+        let checkpoint = run_plan.checkpoint(data.views.len())?;
+        let (run, mut record) = (&run_plan.paths, run_plan.record.clone());
         record.config.threads = self.threads;
         let iterations = record.config.iterations;
 
@@ -162,7 +129,7 @@ impl CellRun<'_> {
             let max_steps = self.stop_after_steps.map(|n| from + n);
             let on_step = |step: u64| self.progress.move_cell_to(step);
             let opts = TrainOptions { progress: false, stop: self.stop, max_steps, on_step: Some(&on_step) };
-            trainer.train(&run, &opts)?;
+            trainer.train(run, &opts)?;
             self.progress.move_cell_to(trainer.step);
             let stopped = self.stop.is_some_and(|s| s.load(Ordering::SeqCst)) || max_steps.is_some();
             if trainer.step < iterations && stopped {

@@ -53,7 +53,7 @@ fn first_cell<'a>(table: &'a Table, row: &super::Row, scene: &str) -> Option<&'a
 
 /// The dataset folder a cell trained on (its run record's `data`).
 fn dataset_of(cell_dir: &Path) -> Result<PathBuf, String> {
-    let record = crate::run::cell::read_record(&cell_dir.join("config.toml")).map_err(|e| e.to_string())?;
+    let record = trainer::run::read_record(&cell_dir.join("config.toml")).map_err(|e| e.to_string())?;
     if record.data.is_dir() {
         Ok(record.data)
     } else {

@@ -224,14 +224,14 @@ fn the_picture_shows_input_renders_and_ground_truth_per_test_view_or_says_why_no
     for m in &cells {
         let cell_dir = dir.join(&m.scene).join(&m.method).join(&m.key);
         let preset = trainer::presets::preset(&m.preset).unwrap();
-        let record = crate::run::cell::RunRecord {
+        let record = trainer::train::RunRecord {
             preset: m.preset.clone(),
             scale: m.scale,
             data: data.clone(),
             config: (preset.build)(m.scale),
             events_unit: Default::default(),
         };
-        crate::run::cell::write_record(&record, &cell_dir.join("config.toml")).unwrap();
+        trainer::run::write_record(&cell_dir.join("config.toml"), &record).unwrap();
         std::fs::create_dir_all(cell_dir.join("eval")).unwrap();
         for v in ["00.png", "03.png"] {
             let shade = (m.psnr * 5.0) as u8 + m.seed as u8;

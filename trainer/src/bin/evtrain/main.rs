@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
 use simulator::dataset::check::EventsUnit;
@@ -15,6 +15,7 @@ use trainer::data::dataset::{Dataset, LoadOptions};
 use trainer::engine::model::Model;
 use trainer::method::Method;
 use trainer::presets::{self, Scale};
+use trainer::run::RunPlan;
 use trainer::train::{RunPaths, RunRecord, TrainOptions, Trainer};
 
 #[derive(Parser)]
@@ -217,15 +218,10 @@ fn train(
     quiet: bool,
 ) -> Result<()> {
     let TrainFlags { iterations, seed, threads, events_unit } = flags;
-    let run = RunPaths::new(out);
-    // held until the run ends: one process per run folder
-    let _lock;
-    let (record, checkpoint, preloaded) = if resume {
-        let text = std::fs::read_to_string(run.config())
-            .with_context(|| format!("{}: no run to resume; train without --resume first", run.config().display()))?;
-        _lock = run.lock()?;
-        let mut record: RunRecord = toml::from_str(&text)
-            .with_context(|| format!("{}: not a run config; delete the run folder", run.config().display()))?;
+    // The plan holds the folder's lock until the run ends: one process per run folder.
+    let (mut plan, dataset) = if resume {
+        let plan = RunPlan::resume(out)?;
+        let record = &plan.record;
         // A run keeps its settings: flags that would change them are refused, not ignored.
         let c = &record.config;
         let recorded = [
@@ -248,18 +244,7 @@ fn train(
             }
         }
         let dataset = load(&record.data, &record.config, true, record.events_unit)?;
-        let method = Method::new(&record.config, dataset.views.len());
-        let ck = run.resume_checkpoint(method.layout(), record.config.checkpoint_every)?;
-        if let Some(n) = iterations.filter(|n| *n != record.config.iterations) {
-            let done = ck.as_ref().map_or(0, |c| c.step);
-            if n < done {
-                bail!("--iterations {n}: the run in {} is already at step {done}; pass a larger count", out.display());
-            }
-            record.config.iterations = n;
-            record.config.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
-            simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
-        }
-        (record, ck, Some(dataset))
+        (plan, dataset)
     } else {
         let (Some(data), Some(preset)) = (data, preset) else { bail!("--data and --preset are needed for a new run") };
         let Some(p) = presets::preset(&preset) else {
@@ -267,7 +252,7 @@ fn train(
         };
         let scale = scale.as_deref().unwrap_or("cpu");
         let Some(scale) = Scale::parse(scale) else { bail!("--scale {scale}: unknown; choose cpu or paper") };
-        if run.config().exists() {
+        if RunPaths::new(out).config().exists() {
             bail!("{}: a run is already there; pass --resume to continue it or choose another --out", out.display());
         }
         let mut config = match &config_file {
@@ -297,26 +282,20 @@ fn train(
         config.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
         let data =
             std::fs::canonicalize(&data).with_context(|| format!("--data {}: no such folder", data.display()))?;
-        // The volume box is fitted to the dataset's cameras once and recorded with the run.
         let dataset = load(&data, &config, true, events_unit)?;
-        trainer::method::resolve(&mut config, &dataset);
-        trainer::train::check_fits_in_memory(&config, dataset.views.len()).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let record = RunRecord { preset, scale, data, config, events_unit };
-        std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create the run folder", out.display()))?;
-        _lock = run.lock()?;
-        if run.config().exists() {
-            bail!(
-                "{}: a run was started there meanwhile; pass --resume to continue it or choose another --out",
-                out.display()
-            );
+        let record = trainer::run::new_record(&preset, scale, data, config, &dataset, events_unit)?;
+        (RunPlan::start(out, record)?, dataset)
+    };
+    let checkpoint = plan.checkpoint(dataset.views.len())?;
+    if let Some(n) = iterations.filter(|n| resume && *n != plan.record.config.iterations) {
+        let done = checkpoint.as_ref().map_or(0, |c| c.step);
+        if n < done {
+            bail!("--iterations {n}: the run in {} is already at step {done}; pass a larger count", out.display());
         }
-        simulator::image_io::write_atomic(&run.config(), toml::to_string(&record)?.as_bytes())?;
-        (record, None, Some(dataset))
-    };
-    let dataset = match preloaded {
-        Some(d) => d,
-        None => load(&record.data, &record.config, true, record.events_unit)?,
-    };
+        plan.record.config.iterations = n;
+        plan.save_record()?;
+    }
+    let (run, record) = (&plan.paths, &plan.record);
     let mut trainer = Trainer::new_in(&dataset, record.config.clone(), checkpoint, Some(&run.dir))?;
     let start = trainer.step;
     if start >= record.config.iterations {
@@ -338,7 +317,7 @@ fn train(
         })
         .context("cannot install the Ctrl-C / SIGTERM handler")?;
     }
-    let rows = trainer.train(&run, &TrainOptions { progress: !quiet, stop: Some(&stop), ..TrainOptions::default() })?;
+    let rows = trainer.train(run, &TrainOptions { progress: !quiet, stop: Some(&stop), ..TrainOptions::default() })?;
     let last = rows.last();
     println!(
         "{} {} on {}: steps {}..{} in {:.1} s (total {:.1} s), batch PSNR {:.2} dB{}",
@@ -366,8 +345,8 @@ fn scale_name(scale: Scale) -> &'static str {
 }
 
 fn eval(dir: &Path, threads: usize) -> Result<()> {
-    let (run, record) = read_record(dir)?;
-    let _lock = run.lock()?; // it writes eval/ and metrics.json
+    let plan = RunPlan::resume(dir)?; // locked: it writes eval/ and metrics.json
+    let (run, record) = (&plan.paths, &plan.record);
     let dataset = load(&record.data, &record.config, false, record.events_unit)?;
     let method = Method::new(&record.config, dataset.views.len());
     let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
@@ -400,10 +379,10 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
 /// A run folder's paths and its recorded settings (`config.toml`), checked as a new run's are.
 fn read_record(dir: &Path) -> Result<(RunPaths, RunRecord)> {
     let run = RunPaths::new(dir);
-    let text = std::fs::read_to_string(run.config())
-        .with_context(|| format!("{}: not a run folder (no config.toml); train first", dir.display()))?;
-    let record: RunRecord = toml::from_str(&text).with_context(|| format!("{}: unreadable", run.config().display()))?;
-    record.config.validate().map_err(|e| anyhow!("{}: {e}; fix it or train the run again", run.config().display()))?;
+    if !run.config().is_file() {
+        bail!("{}: not a run folder (no config.toml); train first", dir.display());
+    }
+    let record = trainer::run::read_record(&run.config())?;
     Ok((run, record))
 }
 

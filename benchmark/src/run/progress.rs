@@ -54,11 +54,6 @@ impl Progress {
         self.matrix.set_message(format!("cell {n}/{of}"));
     }
 
-    /// Adds finished steps to the matrix bar.
-    pub fn matrix_advance(&self, steps: u64) {
-        self.matrix.inc(steps);
-    }
-
     /// Starts the cell bar: `msg`, at `start` of `len` steps.
     pub fn cell_start(&self, msg: &str, start: u64, len: u64) {
         self.cell.set_style(self.steps_style.clone());

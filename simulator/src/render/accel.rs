@@ -165,11 +165,6 @@ impl Accel {
         let tris = &self.tris;
         !self.bvh.ray_traverse_miss(ray, |r, id| tris[id].intersect(r))
     }
-
-    /// Number of BVH primitives (more than the triangles when pre-splits duplicate references).
-    pub fn primitive_count(&self) -> usize {
-        self.tris.len()
-    }
 }
 
 /// Barycentrics (b1, b2) of the hit of a ray with an obvhs `RtTriangle`

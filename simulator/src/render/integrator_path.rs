@@ -4,12 +4,6 @@
 use super::*;
 
 impl Renderer<'_> {
-    /// Radiance arriving at `origin` from direction `dir` (one path sample).
-    pub fn li(&self, origin: Vec3, dir: Vec3, s: &RenderSettings, rng: &mut SampleStream) -> Vec3 {
-        let mut first = FirstHit::new(-dir);
-        self.li_first(origin, dir, s, rng, &mut first, None, None, None, PathMode::Full)
-    }
-
     /// [`Renderer::li`], also recording the camera ray's hit in `first` (left as it is when the
     /// ray escapes); with `spread` (see [`Renderer::camera_spread`]) the first hit's textures are
     /// filtered over the ray's footprint; with `camera_hit`, that is the first hit (else it is

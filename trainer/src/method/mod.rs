@@ -17,13 +17,17 @@
 //! the view direction's normalisation and the rigid warp (all finite-difference checked).
 //!
 //! What lives where: this module holds a method's parameters ([`Method`]) and what a run
-//! prepares once ([`StepData`]); `batch` the step's groups, workers and buffers; `kernel`
-//! the blur models' rays and backward chains; [`step`](fn@step) the step itself; [`rays`] the
-//! NDC form of rays, the camera response and the scene box; the event loss is
-//! `crate::events::loss`.
+//! prepares once ([`StepData`]); `batch` the step's groups (drawn, then their rays
+//! assembled), workers and buffers; `kernel` the blur models' rays and backward chains;
+//! `pixel_loss` a pixel's colour terms (image loss, EDI prior, AWP colour); `blur_grads` the
+//! blur models' parameter gradients once the chunks are rendered; [`step`](fn@step) the step
+//! itself (draw, kernels, render and differentiate the chunks, Adam); [`rays`] the NDC form of
+//! rays, the camera response and the scene box; the event loss is `crate::events::loss`.
 
 mod batch;
+mod blur_grads;
 mod kernel;
+mod pixel_loss;
 pub mod rays;
 mod step;
 

@@ -535,3 +535,40 @@ fn sharp_images_default_to_the_sequence_frames() {
     let manifest = std::fs::read_to_string(out.join("dataset.toml")).unwrap();
     assert!(!manifest.contains("sharp_spp"), "no sharp spp recorded when nothing was rendered");
 }
+
+#[test]
+fn set_changes_any_setting_of_the_scene_file_and_names_each_mistake() {
+    let dir = temp_dir("dataset", "set");
+    let toml = tiny_scene(&dir);
+    let with = |sets: &[&str], o: Overrides| {
+        Plan::resolve(&toml, &Overrides { set: sets.iter().map(|s| s.to_string()).collect(), ..o })
+    };
+    // A set value is the same dataset as the named override of it (same settings hash).
+    let named = Plan::resolve(&toml, &Overrides { exposure_ms: Some(4.0), ..Overrides::default() }).unwrap();
+    let set = with(&["dataset.exposure_ms=4.0"], Overrides::default()).unwrap();
+    assert_eq!(set.settings_hash, named.settings_hash);
+    assert_ne!(set.settings_hash, plan(&toml).settings_hash);
+    // Settings no flag names: a nested event-noise table (created: the file has no [events.noise]),
+    // a [dataset] field, the trajectory.
+    let p = with(
+        &["events.noise.leak_rate_hz=0.25", "dataset.glossy_block=3", "trajectory.radius=5.0"],
+        Overrides::default(),
+    )
+    .unwrap();
+    assert_eq!((p.events.noise.leak_rate_hz, p.config.glossy_block), (0.25, 3));
+    assert_ne!(p.render_key, plan(&toml).render_key, "the trajectory is part of the render key");
+    // The named overrides apply after the sets.
+    let p = with(&["dataset.exposure_ms=4.0"], Overrides { exposure_ms: Some(6.0), ..Overrides::default() }).unwrap();
+    assert_eq!(p.config.exposure_ms, 6.0);
+    for (sets, says) in [
+        (&["dataset.exposure_ms"][..], "expected KEY=VALUE"),
+        (&["dataset.exposur_ms=4"][..], "exposur_ms"),
+        (&["dataset.exposure_ms=fast"][..], "exposure_ms"),
+        (&["camera.fov=30"][..], "only settings of [dataset], [events] and [trajectory]"),
+        (&["scene=other.obj"][..], "only settings of [dataset], [events] and [trajectory]"),
+        (&["dataset.fps=nan"][..], "dataset.fps"),
+    ] {
+        let e = with(sets, Overrides::default()).unwrap_err().to_string();
+        assert!(e.contains(says) && e.contains("scene.toml"), "{sets:?}: {e}");
+    }
+}

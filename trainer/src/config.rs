@@ -6,6 +6,7 @@ use crate::engine::adam::AdamConfig;
 use crate::engine::model::ModelConfig;
 use crate::events::ecrf::EcrfConfig;
 use crate::events::edi::EdiConfig;
+use simulator::base::settings::{apply_sets, SetWording};
 
 /// Which images supervise the colour.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -294,45 +295,14 @@ impl TrainConfig {
 /// is a string) or `none` to switch an optional part off (`ecrf=none`). Unknown keys and
 /// values of the wrong type are refused; the result is validated.
 pub fn apply_overrides(cfg: &TrainConfig, sets: &[String]) -> Result<TrainConfig, String> {
-    let mut root = toml::Value::try_from(cfg).map_err(|e| format!("cannot represent the configuration: {e}"))?;
-    for s in sets {
-        let Some((key, val)) = s.split_once('=') else {
-            return Err(format!("--set {s}: expected KEY=VALUE, e.g. events.colour=true or ecrf=none"));
-        };
-        let path: Vec<&str> = key.trim().split('.').collect();
-        let val = val.trim();
-        let value = if val == "none" {
-            None
-        } else {
-            let parsed: Option<toml::Value> =
-                toml::from_str::<toml::Table>(&format!("v = {val}")).ok().and_then(|t| t.get("v").cloned());
-            Some(parsed.unwrap_or_else(|| toml::Value::String(val.to_string())))
-        };
-        let (last, parents) = path.split_last().expect("split gives at least one part");
-        let mut table = root.as_table_mut().expect("a configuration is a table");
-        for (i, part) in parents.iter().enumerate() {
-            let here = path[..=i].join(".");
-            table = match table.get_mut(*part) {
-                Some(toml::Value::Table(t)) => t,
-                Some(_) => return Err(format!("--set {s}: `{here}` is a value, not a table")),
-                None => {
-                    return Err(format!(
-                        "--set {s}: `{here}` is not in this configuration (off in the preset, or misspelt); see evtrain presets --show NAME"
-                    ))
-                }
-            };
-        }
-        match value {
-            Some(v) => {
-                table.insert(last.to_string(), v);
-            }
-            None => {
-                if table.remove(*last).is_none() {
-                    return Err(format!("--set {s}: `{key}` is not set, nothing to switch off"));
-                }
-            }
-        }
-    }
+    let mut root = toml::Table::try_from(cfg).map_err(|e| format!("cannot represent the configuration: {e}"))?;
+    let wording = SetWording {
+        flag: "--set",
+        example: "events.colour=true or ecrf=none",
+        missing: "off in the preset, or misspelt; see evtrain presets --show NAME",
+        create_tables: false,
+    };
+    apply_sets(&mut root, sets, wording)?;
     let out: TrainConfig = root.try_into().map_err(|e| format!("--set: {e}"))?;
     out.validate()?;
     Ok(out)

@@ -23,6 +23,7 @@
 //! [[scenes]]
 //! scene = "../../scenes/tiny/scene.toml"   # simulated (relative to this file)
 //! dataset = { spp = 2 }                     # optional: this scene's overrides
+//! # (or any setting of the scene file: dataset = { set = ["dataset.glossy_block=2"] })
 //!
 //! [[scenes]]
 //! name = "blurfactory"

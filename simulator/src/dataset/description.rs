@@ -34,3 +34,37 @@ pub struct DatasetDescription {
 pub fn parse(text: &str, path: &Path) -> Result<DatasetDescription, SceneError> {
     toml::from_str(text).map_err(|e| SceneError::invalid(path, "TOML", e.to_string().trim_end().to_string()))
 }
+
+/// The tables of a description that `--set` may change: the ones a dataset reads from it (the
+/// scene loader reads the render part from the file itself).
+pub const SETTABLE: [&str; 3] = ["dataset", "events", "trajectory"];
+
+/// As [`parse`], with `sets` applied to the file's TOML first
+/// ([`crate::base::settings::apply_sets`]; keys under [`SETTABLE`] only, missing tables
+/// created); the typed read that follows checks every key and value.
+pub fn parse_with_sets(text: &str, path: &Path, sets: &[String]) -> Result<DatasetDescription, SceneError> {
+    use crate::base::settings::{apply_sets, SetWording};
+    let invalid = |message: String| SceneError::invalid(path, "--set", message);
+    let mut table: toml::Table =
+        toml::from_str(text).map_err(|e| SceneError::invalid(path, "TOML", e.to_string().trim_end().to_string()))?;
+    for s in sets {
+        let table_name = s.split(['.', '=']).next().unwrap_or("").trim();
+        if !SETTABLE.contains(&table_name) {
+            return Err(invalid(format!(
+                "{s}: only settings of [dataset], [events] and [trajectory] can be set (e.g. \
+                 dataset.exposure_ms=40); change the rest of the scene in its file"
+            )));
+        }
+    }
+    let wording = SetWording {
+        flag: "--set",
+        example: "dataset.exposure_ms=40 or events.noise.leak_rate_hz=0.1",
+        missing: "misspelt? the tables are [dataset], [events] and [trajectory]",
+        create_tables: true,
+    };
+    // (the error's element is `--set` already)
+    apply_sets(&mut table, sets, wording).map_err(|e| invalid(e.trim_start_matches("--set ").to_string()))?;
+    table
+        .try_into()
+        .map_err(|e: toml::de::Error| invalid(format!("after {}: {}", sets.join(", "), e.message().trim_end())))
+}

@@ -206,7 +206,11 @@ impl Plan {
         };
         let text = std::fs::read_to_string(scene_file)
             .map_err(|e| DatasetError::io(scene_file, "cannot read the scene file", e))?;
-        let desc = description::parse(&text, scene_file)?;
+        let desc = if overrides.set.is_empty() {
+            description::parse(&text, scene_file)?
+        } else {
+            description::parse_with_sets(&text, scene_file, &overrides.set)?
+        };
         let bad = |field: &str, message: String| DatasetError::config(scene_file, field, message);
         overrides.validate().map_err(|(field, message)| bad(field, message))?;
         let trajectory_config = desc.trajectory.as_ref().map(|t| overrides.apply_speed(t)).ok_or_else(|| {

@@ -386,6 +386,12 @@ pub struct Overrides {
     /// Camera speed factor (> 0): the trajectory's clock runs this much faster (2 = the same
     /// path in half the time, twice the blur per exposure).
     pub speed: Option<f64>,
+    /// Any setting of the scene file's `[dataset]`, `[events]` or `[trajectory]` table,
+    /// `KEY=VALUE` with KEY a dotted path (`dataset.glossy_block=2`,
+    /// `events.noise.leak_rate_hz=0.1`, `trajectory.radius=5.0`; VALUE a TOML value):
+    /// applied to the file before it is read and checked, before the named overrides above.
+    #[serde(default)]
+    pub set: Vec<String>,
 }
 
 impl Overrides {
@@ -430,6 +436,7 @@ impl Overrides {
             shot_noise_rate_hz: over.shot_noise_rate_hz.or(self.shot_noise_rate_hz),
             refractory_ms: over.refractory_ms.or(self.refractory_ms),
             speed: over.speed.or(self.speed),
+            set: self.set.iter().chain(&over.set).cloned().collect(),
         }
     }
 

@@ -145,6 +145,11 @@ pub struct OverrideArgs {
     /// Camera speed factor: the trajectory's clock runs this much faster (2 = twice the blur).
     #[arg(long)]
     pub speed: Option<f64>,
+    /// Set any setting of the scene file's [dataset], [events] or [trajectory] table, KEY=VALUE
+    /// with KEY a dotted path (e.g. `dataset.glossy_block=2`, `events.noise.leak_rate_hz=0.1`);
+    /// repeatable; applied before the flags above.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
 }
 
 impl OverrideArgs {
@@ -184,6 +189,7 @@ impl OverrideArgs {
             shot_noise_rate_hz: self.shot_noise_rate_hz,
             refractory_ms: self.refractory_ms,
             speed: self.speed,
+            set: self.set.clone(),
         }
     }
 }

@@ -8,7 +8,7 @@ use crate::engine::parallel::GradBuffers;
 use crate::engine::renderer::{RayGrad, Renderer, SampleCounts};
 use crate::events::loss::EventWorkspace;
 
-use super::kernel::ViewKernel;
+use super::blur_step::StepBlur;
 use super::rays::{prepare, PreparedRay};
 use super::StepData;
 use crate::config::{ImageSource, TrainConfig};
@@ -41,15 +41,15 @@ pub struct Worker {
     pub(super) dc: Vec<[f32; 3]>,
     pub(super) df: Vec<[f32; 3]>,
     pub(super) events: EventWorkspace,
-    /// Kernel gradients per view: K x (dR 9 + dt 3), then K + 1 weight gradients, then (with
-    /// the AWP) the embedding's gradient from the AWP.
+    /// The blur model's gradient record of every view (`StepBlur::view_record` each).
     pub(super) kgrad: Vec<f64>,
     pub(super) awp_ws: AwpWorkspace<f32>,
     /// dL/d features of the chunk's last pass (from the AWP).
     pub(super) dfeat: Vec<f32>,
-    /// Per-pixel kernel gradients (DSK): for each group in `pgrad_groups`, K x (d offset 2,
-    /// d origin 3, d weight 1).
+    /// The blur model's gradient record of every blurred pixel the worker rendered
+    /// (`StepBlur::pixel_record` each), for the groups in `pgrad_groups`.
     pub(super) pgrad: Vec<f64>,
+    /// The groups of the records in `pgrad`.
     pub(super) pgrad_groups: Vec<u32>,
 }
 
@@ -181,15 +181,17 @@ pub(super) fn draw(
     (picks, slots)
 }
 
-/// The rays of the step's groups: a pixel's blur-model rays (its view's kernel in `kernels`)
-/// and, `with_origin`, its origin ray last, or one plain ray; an event pair's two rays at the
-/// trajectory poses of its events (a pair whose pose is missing is dropped).
-pub(super) fn assemble(
+/// The rays of the step's groups: a pixel's blur-model rays (`blur` with its view's state in
+/// `views`) and, `with_origin`, its origin ray last, or one plain ray; an event pair's two rays
+/// at the trajectory poses of its events (a pair whose pose is missing is dropped).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn assemble<B: StepBlur>(
     picks: Vec<Pick>,
     cfg: &TrainConfig,
     data: &Dataset,
     sd: &StepData,
-    kernels: &[Option<ViewKernel>],
+    blur: &B,
+    views: &[Option<B::View>],
     with_origin: bool,
 ) -> Batch {
     let mut batch =
@@ -207,9 +209,9 @@ pub(super) fn assemble(
                 };
                 let edi = sd.edi.get(v).and_then(|e| e.as_ref()).map_or([f32::NAN; 3], |e| e.pixel(i, j));
                 let ray = data.intrinsics.ray(&view.pose, i, j);
-                match &kernels[v] {
-                    Some(vk) => {
-                        let origin_weight = vk.rays(data, view, &ray, i, j, slot as usize, &mut batch);
+                match &views[v] {
+                    Some(state) => {
+                        let origin_weight = blur.rays(state, data, view, &ray, i, j, slot as usize, &mut batch);
                         if with_origin {
                             batch.push(data, ray, origin_weight);
                         }

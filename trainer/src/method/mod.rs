@@ -18,14 +18,15 @@
 //!
 //! What lives where: this module holds a method's parameters ([`Method`]) and what a run
 //! prepares once ([`StepData`]); `batch` the step's groups (drawn, then their rays
-//! assembled), workers and buffers; `kernel` the blur models' rays and backward chains;
-//! `pixel_loss` a pixel's colour terms (image loss, EDI prior, AWP colour); `blur_grads` the
-//! blur models' parameter gradients once the chunks are rendered; [`step`](fn@step) the step
-//! itself (draw, kernels, render and differentiate the chunks, Adam); [`rays`] the NDC form of
-//! rays, the camera response and the scene box; the event loss is `crate::events::loss`.
+//! assembled), workers and buffers; `blur_step` the blur models' part of a step, one file per
+//! model behind one trait (rays, blending, ray and parameter backward); `kernel` the ray
+//! chains they share; `pixel_loss` a pixel's colour terms (image loss, EDI prior, AWP colour);
+//! [`step`](fn@step) the step itself, generic over the blur model (draw, kernels, render and
+//! differentiate the chunks, Adam); [`rays`] the NDC form of rays, the camera response and the
+//! scene box; the event loss is `crate::events::loss`.
 
 mod batch;
-mod blur_grads;
+mod blur_step;
 mod kernel;
 mod pixel_loss;
 pub mod rays;
@@ -64,25 +65,6 @@ pub enum Blur {
     Trajectory(Trajectory),
     /// Deblur-NeRF's deformable sparse kernel.
     Dsk(Dsk),
-}
-
-impl Blur {
-    /// Rays per blurry pixel (besides the origin ray).
-    pub fn rays(&self) -> usize {
-        match self {
-            Blur::Rigid(k) => k.config.k,
-            Blur::Trajectory(t) => t.config.k,
-            Blur::Dsk(d) => d.config.k,
-        }
-    }
-
-    /// The rigid kernel, if this is one.
-    pub fn rigid(&self) -> Option<&RigidKernel> {
-        match self {
-            Blur::Rigid(k) => Some(k),
-            _ => None,
-        }
-    }
 }
 
 /// A method's parameters: the radiance field, then (when configured) the blur model, the eCRF

@@ -2,7 +2,6 @@
 //! renders and differentiates the chunks in parallel (image loss, EDI prior, AWP, event loss),
 //! then the kernel gradients, TV and one Adam update.
 
-use crate::blur::dsk::DskWorkspace;
 use crate::config::{EventLossConfig, TrainConfig};
 use crate::data::dataset::Dataset;
 use crate::engine::adam::Adam;
@@ -11,8 +10,7 @@ use crate::engine::rng::Rng;
 use crate::events::loss::{event_losses, EventPair, PairRule, BT601};
 
 use super::batch::*;
-use super::blur_grads::{blur_backward, BlurViews, KernelSizes};
-use super::kernel::*;
+use super::blur_step::{BackwardInput, NoBlur, Records, StepBlur, StepContext};
 use super::pixel_loss::{PixelLosses, PixelRays};
 use super::rays::unzip;
 use super::*;
@@ -29,14 +27,40 @@ pub fn step(
     sd: &StepData,
     step: u64,
 ) -> StepLosses {
+    let started = cfg.blur.as_ref().is_some_and(|b| step >= b.start);
+    let args = StepArgs { method, cfg, data, sd, step };
+    match method.blur.as_ref().filter(|_| started) {
+        Some(Blur::Rigid(k)) => step_with(k, bufs, params, adam, &args),
+        Some(Blur::Trajectory(t)) => step_with(t, bufs, params, adam, &args),
+        Some(Blur::Dsk(d)) => step_with(d, bufs, params, adam, &args),
+        None => step_with(&NoBlur, bufs, params, adam, &args),
+    }
+}
+
+/// What a step reads besides its buffers, parameters and optimiser.
+struct StepArgs<'a> {
+    method: &'a Method,
+    cfg: &'a TrainConfig,
+    data: &'a Dataset,
+    sd: &'a StepData,
+    step: u64,
+}
+
+/// The step with blur model `blur` (`NoBlur`: none, or not started yet).
+fn step_with<B: StepBlur>(
+    blur: &B,
+    bufs: &mut StepBuffers,
+    params: &mut [f32],
+    adam: &mut Adam,
+    args: &StepArgs,
+) -> StepLosses {
+    let StepArgs { method, cfg, data, sd, step } = *args;
     let model = &method.model;
-    let (w, h) = (data.intrinsics.width, data.intrinsics.height);
-    let blur = method.blur.as_ref().filter(|_| cfg.blur.as_ref().is_some_and(|b| step >= b.start));
-    let blur_on = blur.is_some();
+    let blur_on = blur.k() > 0;
     let n_views = data.views.len();
     let edi_w = cfg.edi.as_ref().map_or(0.0, |d| d.weight_at(step));
     let evc = cfg.events.as_ref();
-    let (picks, slots) = draw(cfg, data, sd, step, bufs.workers.len());
+    let (picks, _) = draw(cfg, data, sd, step, bufs.workers.len());
     // Each view's batch pixels in slot order.
     let mut view_pixels: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n_views];
     for p in &picks {
@@ -44,114 +68,52 @@ pub fn step(
             view_pixels[v].push((i, j));
         }
     }
-    let centres =
-        |v: usize| -> Vec<[f32; 2]> { view_pixels[v].iter().map(|&(i, j)| [i as f32 + 0.5, j as f32 + 0.5]).collect() };
     let step_seed = cfg.seed ^ step.wrapping_mul(0x9e37_79b9_7f4a_7c15);
     let chunk_rays = cfg.chunk_rays.max(1);
-    // PDRF's first stage: the kernel without features, its rays through the coarse pass.
-    let progressive = match blur {
-        Some(Blur::Dsk(d)) if d.config.progressive => Some(d),
-        _ => None,
-    };
-    let mut probes: Vec<Option<Probe>> = (0..n_views).map(|_| None).collect();
-    let mut probe_pixels: Vec<(usize, usize)> = Vec::new();
-    let probe_seed = step_seed ^ 0x7064_7266;
-    if let Some(dsk) = progressive {
-        let mut noise = Rng::new(cfg.seed, 4 << 40 | step);
-        let k = dsk.config.k;
-        let size = [w as f32, h as f32];
-        for v in (0..n_views).filter(|&v| slots[v] > 0) {
-            let pixels = centres(v);
-            let jitter: Vec<[f32; 2]> =
-                (0..pixels.len() * k).map(|_| [noise.normal_f32(), noise.normal_f32()]).collect();
-            let mut ws = DskWorkspace::default();
-            dsk.forward(params, &mut ws, v, &pixels, size, Some(&jitter), None);
-            probe_pixels.extend((0..pixels.len()).map(|s| (v, s)));
-            probes[v] = Some(Probe { ws, ..Probe::default() });
-        }
-    }
-    let probe_pass = progressive.map(|dsk| ProbePass {
-        model,
-        data,
-        pixels: &probe_pixels,
-        view_pixels: &view_pixels,
-        k: dsk.config.k,
-        chunk_rays,
-        seed: probe_seed,
-    });
-    if let (Some(dsk), Some(pass)) = (progressive, &probe_pass) {
-        let (k, p, pr): (usize, &[f32], &[Option<Probe>]) = (dsk.config.k, params, &probes);
-        let out = bufs
-            .grads
-            .run(0, probe_pixels.len(), &mut bufs.workers, |range, g, wk| pass.run(p, pr, range, g, wk, false));
-        let nf = dsk.features;
-        let per = k * (3 + nf);
-        for (n, x) in out.concat().chunks_exact(per).enumerate() {
-            let (v, _) = probe_pixels[n];
-            let pr = probes[v].as_mut().expect("probed view");
-            pr.cols.extend(x[..3 * k].chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
-            pr.feats.extend_from_slice(&x[3 * k..]);
-        }
-    }
+    let p: &[f32] = params;
+    let ctx =
+        StepContext { params: p, data, model, view_pixels: &view_pixels, seed: cfg.seed, step, step_seed, chunk_rays };
     // The blur model of every view with pixels in the batch.
-    let mut kernels: Vec<Option<ViewKernel>> = (0..n_views).map(|_| None).collect();
-    if let Some(blur) = blur {
-        let mut noise = Rng::new(cfg.seed, 3 << 40 | step);
-        for v in (0..n_views).filter(|&v| slots[v] > 0) {
-            let features = probes[v].as_ref().map(|p| &p.feats[..]);
-            kernels[v] = Some(ViewKernel::new(blur, params, data, v, &centres(v), &mut noise, features));
-        }
-    }
+    let mut views = blur.views(&ctx, &mut bufs.workers, &mut bufs.grads);
     // The origin ray closes every blurred pixel's group when something reads it: the rigid
     // kernel's weight, the AWP, the EDI prior.
-    let with_origin = matches!(blur, Some(Blur::Rigid(_))) || cfg.edi.is_some();
-    let batch = assemble(picks, cfg, data, sd, &kernels, with_origin);
+    let with_origin = blur.blends_origin() || cfg.edi.is_some();
+    let batch = assemble(picks, cfg, data, sd, blur, &views, with_origin);
     let inv_gamma = (1.0 / cfg.response_gamma) as f32;
     let img_scale = 1.0 / (3.0 * batch.pixels.max(1) as f32);
     let ev_scale = evc.map_or(0.0, |e| e.weight as f32) / batch.events.max(1) as f32;
     let edi_scale = edi_w as f32 * img_scale;
-    let k_rays = blur.map_or(0, |b| b.rays());
     // Blur models whose rays move with their parameters take the rays' gradients.
-    let learns_rays = match blur {
-        Some(Blur::Trajectory(t)) => t.config.learned,
-        Some(_) => true,
-        None => false,
-    };
-    let is_dsk = matches!(blur, Some(Blur::Dsk(_)));
+    let learns_rays = blur.learns_rays();
     let awp = method.awp.as_ref().filter(|_| blur_on);
     let mix = awp.map_or(0.0, |a| a.config.mix_at(step)) as f32;
     // The image loss mixes the kernel's colours and the AWP's: (1 - l) [coarse + fine] + l awp.
     let blur_scale = img_scale * (1.0 - mix);
     let emb_dim = awp.map_or(0, |a| a.embedding);
-    let kstride = 12 * k_rays + k_rays + 1 + emb_dim;
+    let kstride = blur.view_record(emb_dim);
+    let pstride = blur.pixel_record();
     let luma = evc.and_then(|e| e.luma).unwrap_or(BT601).map(|x| x as f32);
     let log_eps = evc.and_then(|e| e.log_eps).unwrap_or(1e-5) as f32;
     let cut = pair_rule(evc);
-    // A DSK pixel's gradients: K x (offset 2, origin 3, weight 1), then (PDRF) dL/d the first
-    // stage's coarse blurry colour.
-    let pstride = 6 * k_rays + if progressive.is_some() { 3 } else { 0 };
-    let p: &[f32] = params;
     let ecrf = method.ecrf.as_ref();
     let batch_ref = &batch;
     let n_groups = batch.groups.len();
     let pixel_losses = PixelLosses {
+        blur,
+        views: &views,
         inv_gamma,
         img_scale,
         blur_scale,
         edi_scale,
         pixels: batch.pixels,
-        rigid: matches!(blur, Some(Blur::Rigid(_))),
-        k_rays,
         kstride,
-        embeddings: blur.and_then(Blur::rigid).map_or(0, |k| k.embeddings),
-        probes: &probes,
         weights: &batch.weights,
         rays: &batch.rays,
     };
     let sums = bufs.grads.run(model.layout.len(), n_groups, &mut bufs.workers, |range, g, wk| {
         let mut sums = Sums::default();
         wk.kgrad.clear();
-        wk.kgrad.resize(if blur_on { n_views * kstride } else { 0 }, 0.0);
+        wk.kgrad.resize(n_views * kstride, 0.0);
         wk.pgrad.clear();
         wk.pgrad_groups.clear();
         let groups = &batch_ref.groups;
@@ -183,7 +145,7 @@ pub fn step(
                 let (a, m) = (gr.first - r0, gr.n);
                 let blurred = m > 1;
                 any_kernel |= blurred;
-                let pg = (blurred && is_dsk).then(|| {
+                let pg = (blurred && pstride > 0).then(|| {
                     wk.pgrad_groups.push((g0 + gi) as u32);
                     wk.pgrad.resize(wk.pgrad.len() + pstride, 0.0);
                     wk.pgrad.len() - pstride
@@ -228,38 +190,13 @@ pub fn step(
                     if gr.n == 1 {
                         continue;
                     }
-                    let pose = &data.views[view as usize].pose;
-                    if is_dsk {
-                        // World ray o = c + R t, d = R (d_cam(x + o) - t): back to the pixel
-                        // offset and the camera-frame origin shift.
-                        let pg = chunk_pg[gi];
-                        for q in 0..k_rays {
-                            let r = gr.first + q;
-                            let (d_off, d_t) =
-                                dsk_ray_backward(&data.intrinsics, pose, &batch_ref.world[r], &wk.d_rays[r - r0]);
-                            let out = &mut wk.pgrad[pg + 6 * q..pg + 6 * q + 5];
-                            for (o, d) in out.iter_mut().zip(d_off.iter().chain(&d_t)) {
-                                *o += d;
-                            }
-                        }
-                        continue;
-                    }
-                    let orig = data.intrinsics.ray(pose, i, j);
-                    let base = view as usize * kstride;
-                    for q in 0..k_rays {
-                        let r = gr.first + q;
-                        let (d_r, d_t) =
-                            kernel_ray_backward(&data.intrinsics, &orig, &batch_ref.world[r], &wk.d_rays[r - r0]);
-                        let kg = &mut wk.kgrad[base + 12 * q..base + 12 * q + 12];
-                        for (i, row) in d_r.iter().enumerate() {
-                            for (jx, v) in row.iter().enumerate() {
-                                kg[3 * i + jx] += v;
-                            }
-                        }
-                        for i in 0..3 {
-                            kg[9 + i] += d_t[i];
-                        }
-                    }
+                    let (v0, pg) = (view as usize * kstride, chunk_pg[gi]);
+                    let mut rec = Records {
+                        view: &mut wk.kgrad[v0..v0 + kstride],
+                        pixel: if pg == usize::MAX { &mut [] } else { &mut wk.pgrad[pg..pg + pstride] },
+                    };
+                    let (world, d_rays) = (&batch_ref.world[gr.first..], &wk.d_rays[gr.first - r0..n]);
+                    blur.ray_backward(data, view as usize, i, j, world, d_rays, &mut rec);
                 }
             }
             g0 = g1;
@@ -270,13 +207,15 @@ pub fn step(
     grads.clear();
     grads.resize(model.layout.len(), 0.0);
     bufs.grads.sum_into(grads);
-    // The blur model's parameters: the kernels' gradients, summed over workers in order.
-    if let Some(blur) = blur {
-        let sizes = KernelSizes { k_rays, kstride, emb_dim, pstride };
-        let views = BlurViews { kernels: &mut kernels, probes: &mut probes, probe_pass: probe_pass.as_ref() };
-        let (workers, pool) = (&mut bufs.workers, &mut bufs.grads);
-        blur_backward(blur, learns_rays, views, &sizes, &batch, step, params, grads, workers, pool);
-    }
+    // The blur model's parameters: its records' gradients, summed over workers in order.
+    let input = BackwardInput {
+        ctx: &ctx,
+        batch: &batch,
+        view_stride: kstride,
+        workers: &mut bufs.workers,
+        pool: &mut bufs.grads,
+    };
+    blur.backward(&mut views, input, grads);
     // The eCRF learns from its start iteration on (before: held at the identity).
     if let (Some(e), Some(c)) = (ecrf, cfg.ecrf.as_ref()) {
         if step < c.start {

@@ -436,6 +436,19 @@ fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
 }
 
 #[test]
+fn noise_measure_of_surface_cache_frames_has_no_unfiltered_sequence() {
+    // Surface-cache frames (the default) have no image filter and no raw renders to compare;
+    // `evsim dataset-noise` used to panic on them.
+    use simulator::dataset::noise::{measure, NoiseOptions};
+    let dir = temp_dir("dataset", "noise-surface");
+    let p = plan(&tiny_scene(&dir));
+    assert!(p.config.denoise && p.config.shading == Shading::SurfaceCache, "the defaults this test is about");
+    let r = measure(&p, &NoiseOptions { frames: 3, factor: 2, ..NoiseOptions::default() }).unwrap();
+    assert!(!r.denoised && r.unfiltered.is_none() && r.vs_unfiltered.is_none(), "{:?}", r.pipeline);
+    assert_eq!((r.frames, r.spp), (3, 2));
+}
+
+#[test]
 fn sweep_overrides_reach_the_plan_and_a_shared_frame_cache_skips_rendering() {
     let dir = temp_dir("dataset", "sweep");
     let toml = tiny_scene(&dir);

@@ -36,7 +36,7 @@ use sha2::{Digest, Sha256};
 use super::cache::{round_to_f16, FrameCache};
 use super::noise::Comparison;
 use super::plan::Plan;
-use super::sequence::SequenceRenderer;
+use super::sequence::{at_sensor, SequenceRenderer};
 use super::writer::render_settings;
 use super::{DatasetError, NoisePattern};
 use crate::base::image::Image;
@@ -318,8 +318,8 @@ impl EventRun {
     }
 
     /// Step the model with `img` at `t_ns`; returns the gained image.
-    fn step(&mut self, mut img: Image, t_ns: i64, k: usize) -> Result<Image, DatasetError> {
-        img.pixels.iter_mut().for_each(|p| *p *= self.gain);
+    fn step(&mut self, img: Image, t_ns: i64, k: usize) -> Result<Image, DatasetError> {
+        let img = at_sensor(&img, self.gain).into_owned();
         self.sim
             .step(&img, t_ns, &mut self.sink)
             .map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
@@ -463,8 +463,7 @@ pub fn measure(plan: &Plan, opts: &FidelityOptions) -> Result<FidelityReport, Da
     let mut run = EventRun::new(&cfg, plan, (w, h))?;
     let mut seq = SequenceRenderer::new(plan, &renderer, plan.config.spp);
     for k in range.clone() {
-        let mut img = seq.frame(k)?;
-        round_to_f16(&mut img);
+        let img = seq.frame(k)?;
         run.step(img, plan.clock.time_ns(k), k)?;
         pb.inc(1);
     }

@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 use super::cache::FrameCache;
 use super::depth::{bounds, depth_grid};
 use super::plan::Plan;
+use super::sequence::at_sensor;
 use super::writer::{image_name, write_png, write_sharp, DEPTH_STRIDE};
 use super::DatasetError;
 use crate::base::image::Image;
@@ -124,14 +125,10 @@ impl<'a> FrameTail<'a> {
         // events see the sensor irradiance, gain included
         let t = Instant::now();
         self.events.events.clear();
-        let stats = if c.gain == 1.0 {
-            self.sim.step(&frame, t_ns, &mut self.events)
-        } else {
-            let mut scaled = frame.clone();
-            scaled.pixels.iter_mut().for_each(|p| *p *= c.gain);
-            self.sim.step(&scaled, t_ns, &mut self.events)
-        }
-        .map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
+        let stats = self
+            .sim
+            .step(&at_sensor(&frame, c.gain), t_ns, &mut self.events)
+            .map_err(|e| DatasetError::stage(format!("frame {k}: event model"), e))?;
         self.done.events_on += stats.on;
         self.done.events_off += stats.off;
         self.done.events_time += t.elapsed();

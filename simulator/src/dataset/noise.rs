@@ -23,9 +23,8 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::cache::round_to_f16;
 use super::plan::Plan;
-use super::sequence::SequenceRenderer;
+use super::sequence::{at_sensor, SequenceRenderer};
 use super::DatasetError;
 use crate::events::{EventSimulator, VecSink};
 use crate::render::integrator::Renderer;
@@ -162,7 +161,8 @@ pub struct NoiseReport {
     pub spp: u32,
     /// Samples per pixel of the reference.
     pub ref_spp: u32,
-    /// Whether the dataset's frames are denoised (`[dataset] denoise`).
+    /// Whether the dataset's frames are filtered (`[dataset] denoise` on path-traced frames;
+    /// surface-cache frames have no image filter).
     pub denoised: bool,
     /// The dataset's frames at `spp` against the same pipeline at `ref_spp`: the noise measure.
     pub pipeline: Comparison,
@@ -170,10 +170,13 @@ pub struct NoiseReport {
     pub pipeline_map: DiffMap,
     /// The segment's first frame as the dataset renders it (linear), to show the map on.
     pub first_frame: crate::base::image::Image,
-    /// With denoising on: the denoised frames at `spp` against *unfiltered* frames at `ref_spp`
+    /// With denoising on (path-traced frames; surface-cache frames are filtered inside their
+    /// render, so there is no unfiltered sequence to compare): the denoised frames at `spp`
+    /// against *unfiltered* frames at `ref_spp`
     /// (what the filter changes besides noise shows up here, next to the reference's own noise).
     pub vs_unfiltered: Option<Comparison>,
-    /// With denoising on: unfiltered frames at `spp` against unfiltered frames at `ref_spp`
+    /// With denoising on (path-traced frames): unfiltered frames at `spp` against unfiltered
+    /// frames at `ref_spp`
     /// (the measure without the filter, from the same renders).
     pub unfiltered: Option<Comparison>,
     /// Frames rendered per sequence: the segment plus the temporal window's margins.
@@ -203,7 +206,7 @@ type SequenceCounts = (Vec<Counted>, (usize, u64), crate::base::image::Image);
 
 /// Binned events of a sequence rendered at `spp` (`spp` in every pixel when `uniform`, else
 /// with the plan's adaptive sampling): `[as the dataset renders it, unfiltered]` (the second
-/// only when the dataset denoises; both from the same renders).
+/// only for denoised path-traced frames; both from the same renders).
 fn event_counts(
     plan: &Plan,
     renderer: &Renderer,
@@ -214,27 +217,27 @@ fn event_counts(
     pb: &ProgressBar,
 ) -> Result<SequenceCounts, DatasetError> {
     let c = &plan.config;
-    let variants = if c.denoise { 2 } else { 1 };
+    let mut seq = SequenceRenderer::new(plan, renderer, spp);
+    if uniform {
+        seq = seq.uniform();
+    }
+    let variants = if seq.keeps_raw() { 2 } else { 1 };
     let mut sims = (0..variants)
         .map(|_| EventSimulator::new(plan.events.clone(), c.width, c.height))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| DatasetError::config(&plan.scene_file, "events", e.to_string()))?;
     let t_start = plan.clock.time_ns(frames.start);
     let mut out: Vec<Counted> = (0..variants).map(|_| Counted::default()).collect();
-    let mut seq = SequenceRenderer::new(plan, renderer, spp);
-    if uniform {
-        seq = seq.uniform();
-    }
     let mut first = None;
     for k in frames {
         let t_ns = plan.clock.time_ns(k);
         let mut images = vec![seq.frame(k)?];
-        if c.denoise {
-            images.push(seq.raw(k).expect("denoising keeps the window's raw renders"));
+        if variants == 2 {
+            images.push(seq.raw(k).expect("denoised path-traced frames keep the window's raw renders"));
         }
-        for ((mut img, sim), counted) in images.into_iter().zip(&mut sims).zip(&mut out) {
-            round_to_f16(&mut img);
-            img.pixels.iter_mut().for_each(|p| *p *= c.gain);
+        for ((img, sim), counted) in images.into_iter().zip(&mut sims).zip(&mut out) {
+            // (a raw render is kept in halves already)
+            let img = at_sensor(&img, c.gain).into_owned();
             if first.is_none() {
                 first = Some(img.clone());
             }
@@ -306,7 +309,7 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
         height: c.height,
         spp: c.spp,
         ref_spp,
-        denoised: c.denoise,
+        denoised: test.len() == 2,
         pipeline: Comparison::of(&test[0], &reference[0]),
         pipeline_map: Comparison::map(
             &test[0],
@@ -315,8 +318,8 @@ pub fn measure(plan: &Plan, opts: &NoiseOptions) -> Result<NoiseReport, DatasetE
             (c.width.div_ceil(opts.pool), c.height.div_ceil(opts.pool)),
         ),
         first_frame,
-        vs_unfiltered: c.denoise.then(|| Comparison::of(&test[0], &reference[1])),
-        unfiltered: c.denoise.then(|| Comparison::of(&test[1], &reference[1])),
+        vs_unfiltered: (test.len() == 2).then(|| Comparison::of(&test[0], &reference[1])),
+        unfiltered: (test.len() == 2).then(|| Comparison::of(&test[1], &reference[1])),
         renders,
         mean_spp: samples as f64 / (renders.max(1) as f64 * (c.width * c.height) as f64),
         test_time,

@@ -58,16 +58,14 @@ pub fn contact_sheet(plan: &Plan, renderer: &Renderer, view: Option<usize>) -> R
     };
     let mut seq = super::sequence::SequenceRenderer::new(plan, renderer, c.spp);
     for k in first..=last {
-        let mut frame = seq.frame(k)?;
-        super::cache::round_to_f16(&mut frame);
+        let frame = seq.frame(k)?;
         if k == k_mid && plan.sharp_spp.is_none() {
             sharp = Some(frame.clone());
         }
         let t_ns = plan.clock.time_ns(k);
         let mut events = VecSink::default();
-        let mut scaled = frame.clone();
-        scaled.pixels.iter_mut().for_each(|p| *p *= c.gain);
-        sim.step(&scaled, t_ns, &mut events).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
+        sim.step(&super::sequence::at_sensor(&frame, c.gain), t_ns, &mut events)
+            .map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
         for e in events.events.iter().filter(|e| e.t_ns >= t_start && e.t_ns <= t_end) {
             let n = &mut counts[(e.y as u32 * w + e.x as u32) as usize];
             if e.p > 0 {

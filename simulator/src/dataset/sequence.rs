@@ -1,7 +1,11 @@
-//! The frames of a dataset's sequence as every stage sees them: the path tracer's render of
-//! frame `k`, then, with `[dataset] denoise`, the temporal window
+//! The frames of a dataset's sequence as every stage sees them, the one frame stream the
+//! writer, the preview, the noise measurement and the fidelity check all drive: the path
+//! tracer's render of frame `k`, then, with `[dataset] denoise`, the temporal window
 //! ([`crate::render::temporal`], `temporal_radius` frames on each side) and the spatial filter
-//! ([`crate::render::denoise`]).
+//! ([`crate::render::denoise`]), rounded to the stored precision (half floats, what the frame
+//! cache holds: [`SequenceRenderer::frame`], or [`SequenceRenderer::frame_or_cached`] through
+//! the cache); the event model then sees it times the sensor gain ([`at_sensor`]) and the
+//! exposures average it as it is.
 //!
 //! Frames are asked for in increasing order. The raw renders (with their feature buffers) of
 //! the window around the current frame stay in memory, so each frame is rendered once however
@@ -12,9 +16,12 @@
 //! reflectance and the raw render in half floats) and the `radius` before it reduced to what a
 //! neighbour needs (6.7 MB each): about 0.6 GB at the default radius of 32.
 
+use std::borrow::Cow;
 use std::collections::VecDeque;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use super::cache::{round_to_f16, FrameCache};
 use super::plan::Plan;
 use super::writer::render_settings;
 use super::DatasetError;
@@ -80,9 +87,34 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         self
     }
 
-    /// Frame `k` as the dataset's stages see it (not yet rounded to halves). `k` must not be
-    /// smaller than in the previous call (a programming error otherwise).
+    /// Whether [`SequenceRenderer::raw`] has the unfiltered renders: denoised path-traced
+    /// frames (surface-cache frames are filtered inside their render).
+    pub fn keeps_raw(&self) -> bool {
+        self.plan.config.denoise && self.plan.config.shading == super::Shading::PathTraced
+    }
+
+    /// Frame `k` as the dataset's stages see it, rounded to halves. `k` must not be smaller
+    /// than in the previous call (a programming error otherwise).
     pub fn frame(&mut self, k: usize) -> Result<Image, DatasetError> {
+        let mut img = self.render(k)?;
+        round_to_f16(&mut img);
+        Ok(img)
+    }
+
+    /// Frame `k` from `cache` when it holds it at the plan's size (with `None`), else rendered
+    /// as [`SequenceRenderer::frame`] (with the path the caller stores it at once it is done
+    /// with it, [`FrameCache::store`]).
+    pub fn frame_or_cached(&mut self, k: usize, cache: &FrameCache) -> Result<(Image, Option<PathBuf>), DatasetError> {
+        let c = &self.plan.config;
+        let path = cache.frame_path(c.fps, self.spp, c.noise_pattern, k);
+        if let Some(img) = FrameCache::load(&path)?.filter(|i| (i.width, i.height) == (c.width, c.height)) {
+            return Ok((img, None));
+        }
+        Ok((self.frame(k)?, Some(path)))
+    }
+
+    /// Frame `k` before the rounding to halves.
+    fn render(&mut self, k: usize) -> Result<Image, DatasetError> {
         if self.plan.config.shading == super::Shading::SurfaceCache {
             let settings = self.settings(k)?;
             let t = Instant::now();
@@ -150,6 +182,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         Ok(())
     }
 
+    /// Render settings of frame `k`.
     fn settings(&self, k: usize) -> Result<crate::render::film::RenderSettings, DatasetError> {
         let pose = self
             .plan
@@ -161,4 +194,15 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
         s.spp_max = self.spp_max;
         Ok(s)
     }
+}
+
+/// What the event model sees of a stored frame: its linear values times the sensor `gain`
+/// (the frame itself when the gain is 1).
+pub fn at_sensor(frame: &Image, gain: f32) -> Cow<'_, Image> {
+    if gain == 1.0 {
+        return Cow::Borrowed(frame);
+    }
+    let mut scaled = frame.clone();
+    scaled.pixels.iter_mut().for_each(|p| *p *= gain);
+    Cow::Owned(scaled)
 }

@@ -305,15 +305,10 @@ pub fn write_dataset(plan: &Plan, opts: &RunOptions) -> Result<Summary, DatasetE
     let mut next_frame = |k: usize| -> Result<(Finished, Duration, Duration), DatasetError> {
         let pose =
             plan.trajectory.pose_at(plan.clock.time_ns(k)).map_err(|e| DatasetError::stage(format!("frame {k}"), e))?;
-        let path = cache.frame_path(c.fps, c.spp, c.noise_pattern, k);
         let t = Instant::now();
-        if let Some(frame) = FrameCache::load(&path)?.filter(|i| (i.width, i.height) == (w, h)) {
-            return Ok((Finished { k, pose, frame, store: None }, t.elapsed(), Duration::ZERO));
-        }
         let denoise_time = seq.denoise_time;
-        let mut frame = seq.frame(k)?;
-        round_to_f16(&mut frame);
-        Ok((Finished { k, pose, frame, store: Some(path) }, t.elapsed(), seq.denoise_time - denoise_time))
+        let (frame, store) = seq.frame_or_cached(k, &cache)?;
+        Ok((Finished { k, pose, frame, store }, t.elapsed(), seq.denoise_time - denoise_time))
     };
     pb.set_message("frames");
     // frame k renders while frame k - 1 passes the tail (cache, depth bounds, events, views)

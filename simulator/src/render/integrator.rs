@@ -16,10 +16,11 @@
 //! features, visibility, film offsets); `integrator_path.rs` the path (`li`);
 //! `integrator_geometry.rs` what shading reads of a hit; `integrator_pixels.rs` the pixel loop,
 //! adaptive sampling and the feature buffers; `integrator_fill.rs` the radiance cache's fills;
-//! `surface.rs` the surface cache; `first_hits.rs` the first-hit feature sums.
+//! `surface.rs` the surface cache; `first_hits.rs` the first-hit feature sums; what the
+//! renderer keeps from frame to frame is held in `frame_caches.rs`.
 
 use crate::base::colour::luminance;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 use indicatif::ProgressBar;
@@ -28,10 +29,11 @@ use rayon::prelude::*;
 use super::accel::{Accel, BvhPreset, Hit};
 use super::bsdf::Bsdf;
 use super::film::RenderSettings;
+use super::frame_caches::{FilmKey, FrameCaches};
 use super::lights::{emitted_filtered, Lights};
 use super::radiance_cache::{lattice_bary, lattice_index, steps_for, CacheParams, FillTimes, Lattice, RadianceCache};
 use super::raster::{rasterise, FilmOffsets, Visibility};
-use super::sampler::{pixel_key, SampleStream, SamplerKind};
+use super::sampler::{pixel_key, SampleStream};
 use crate::base::image::Image;
 use crate::base::sampling::{power_heuristic, Frame};
 use crate::scene::{FilmRays, Scene};
@@ -56,20 +58,10 @@ pub struct Renderer<'a> {
     /// Per triangle, what shading a hit reads (normals, texture coordinates, material) in one
     /// cache line instead of scattered over the mesh's arrays.
     shading: Vec<ShadingTri>,
-    /// The radiance cache of the last render that asked for one (kept while its parameters
-    /// stay the same, so the frames of a sequence share it).
-    cache: Mutex<Option<Arc<RadianceCache>>>,
-    /// The film offsets of the last visibility buffer and what they depend on (see
-    /// [`Renderer::film_offsets`]).
-    film_offsets: Mutex<Option<(FilmKey, Arc<FilmOffsets>)>>,
-    /// The surface cache of the last surface-cache render (kept while its parameters stay the
-    /// same, see [`surface`]).
-    surface: Mutex<Option<Arc<surface::SurfaceCache>>>,
+    /// The radiance cache, surface cache and film offsets kept from frame to frame while
+    /// they fit the frame's settings.
+    caches: FrameCaches,
 }
-
-/// What a film's camera-sample offsets depend on: width, height, samples per pixel, seed, frame
-/// and sampler.
-type FilmKey = (u32, u32, u32, u64, u64, SamplerKind);
 
 impl<'a> Renderer<'a> {
     /// Build the acceleration structure (default preset) and light tables for `scene`.
@@ -95,9 +87,7 @@ impl<'a> Renderer<'a> {
             accel: Accel::build(&scene.mesh, preset),
             lights: Lights::new(scene),
             shading,
-            cache: Mutex::new(None),
-            film_offsets: Mutex::new(None),
-            surface: Mutex::new(None),
+            caches: FrameCaches::default(),
         }
     }
 
@@ -207,21 +197,17 @@ impl<'a> Renderer<'a> {
     /// `s`'s film: computed once and reused while the film, seed, sampler and frame stay the
     /// same (every frame of a sequence with a fixed noise pattern).
     pub fn film_offsets(&self, s: &RenderSettings, samples: u32) -> Arc<FilmOffsets> {
-        let key = (s.width, s.height, samples, s.seed, s.frame, s.sampler);
-        let mut slot = self.film_offsets.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((k, offsets)) = &*slot {
-            if *k == key {
-                return offsets.clone();
-            }
-        }
-        let offsets = Arc::new(FilmOffsets::new(s.width, s.height, samples, |x, y, out| {
-            let key = pixel_key(s.seed, y as u64 * s.width as u64 + x as u64, s.frame);
-            for (i, o) in out.iter_mut().enumerate() {
-                *o = Vec2::from(SampleStream::new(s.sampler, key, i as u32).next_2d());
-            }
-        }));
-        *slot = Some((key, offsets.clone()));
-        offsets
+        let key: FilmKey = (s.width, s.height, samples, s.seed, s.frame, s.sampler);
+        let make = || {
+            let offsets = FilmOffsets::new(s.width, s.height, samples, |x, y, out| {
+                let key = pixel_key(s.seed, y as u64 * s.width as u64 + x as u64, s.frame);
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = Vec2::from(SampleStream::new(s.sampler, key, i as u32).next_2d());
+                }
+            });
+            (key, Arc::new(offsets))
+        };
+        self.caches.film_offsets.get_or_make(|(k, _)| *k == key, make).1.clone()
     }
 
     /// Mean of `spp` box-filtered samples of pixel (x, y) (full paths: no radiance cache).

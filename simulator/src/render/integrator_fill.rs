@@ -12,28 +12,16 @@ impl Renderer<'_> {
             return None;
         }
         let params = self.cache_params(s, s.radiance_cache, s.cache_spacing, 128.0, s.cache_vertex == 1);
-        let mut slot = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-        match &*slot {
-            Some(c) if c.params == params => Some(c.clone()),
-            _ => {
-                let c = Arc::new(RadianceCache::new(params, self.scene.mesh.len()));
-                *slot = Some(c.clone());
-                Some(c)
-            }
-        }
+        let make = || RadianceCache::new(params, self.scene.mesh.len());
+        Some(self.caches.radiance.get_or_make(|c| c.params == params, make))
     }
 
     /// Time spent so far on the fills of the caches held now, by kind: radiance-cache lattices
     /// (both), surface grids, shadow grids, glossy grids ([`super::radiance_cache::FillClock`]; a surface or glossy
     /// grid's time includes the lattices its paths filled).
     pub fn fill_times(&self) -> [(&'static str, FillTimes); 4] {
-        let cache = self.cache.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map(|c| c.clock.times());
-        let surface = self
-            .surface
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .as_ref()
-            .map(|c| c.clocks.each_ref().map(|k| k.times()));
+        let cache = self.caches.radiance.peek().map(|c| c.clock.times());
+        let surface = self.caches.surface.peek().map(|c| c.clocks.each_ref().map(|k| k.times()));
         let [grids, shadows, glossy] = surface.unwrap_or_default();
         [
             ("radiance cache", cache.unwrap_or_default()),

@@ -7,6 +7,8 @@
 //! - [`bsdf`]: Lambert + GGX metallic-roughness (sample / eval / pdf).
 //! - [`lights`]: emissive triangles sampled by power, punctual lights, environment.
 //! - [`integrator`]: the unidirectional path tracer with next-event estimation and MIS.
+//! - [`frame_caches`]: what a renderer keeps from one frame to the next (radiance and surface
+//!   caches, film offsets).
 //! - [`film`]: the settings of one render (the random numbers, the image and colour helpers
 //!   are in [`crate::base`]).
 //! - [`denoise`]: the feature-guided À-Trous denoiser applied to dataset frames.
@@ -19,6 +21,7 @@ pub mod bsdf;
 pub(crate) mod chi2;
 pub mod denoise;
 pub mod film;
+pub mod frame_caches;
 pub mod integrator;
 pub mod lights;
 pub mod radiance_cache;

@@ -152,33 +152,28 @@ impl Renderer<'_> {
         let path = self.cache_params(s, s.radiance_cache, s.surface_spacing, 512.0, false);
         let spacing = path.spacing;
         let params = SurfaceParams { paths: s.surface_paths.max(1), spacing, path };
-        let mut slot = self.surface.lock().unwrap_or_else(|e| e.into_inner());
         let same_path = |c: &SurfaceCache| match &s.camera_path {
             Some(p) if !p.is_empty() => c.cameras[..] == p[..],
             _ => c.cameras == [s.camera.origin()],
         };
-        match &*slot {
-            Some(c) if c.params == params && same_path(c) => c.clone(),
-            _ => {
-                let n = self.scene.mesh.len();
-                let cameras = match &s.camera_path {
-                    Some(path) if !path.is_empty() => path.to_vec(),
-                    _ => vec![s.camera.origin()],
-                };
-                let pixel_angle = s.camera.yfov / s.height.max(1) as f32;
-                let c = Arc::new(SurfaceCache {
-                    params,
-                    sides: per_side(n),
-                    shadows: per_side(n),
-                    cameras,
-                    pixel_angle,
-                    glossy: Default::default(),
-                    clocks: Default::default(),
-                });
-                *slot = Some(c.clone());
-                c
+        let make = || {
+            let n = self.scene.mesh.len();
+            let cameras = match &s.camera_path {
+                Some(path) if !path.is_empty() => path.to_vec(),
+                _ => vec![s.camera.origin()],
+            };
+            let pixel_angle = s.camera.yfov / s.height.max(1) as f32;
+            SurfaceCache {
+                params,
+                sides: per_side(n),
+                shadows: per_side(n),
+                cameras,
+                pixel_angle,
+                glossy: Default::default(),
+                clocks: Default::default(),
             }
-        }
+        };
+        self.caches.surface.get_or_make(|c| c.params == params && same_path(c), make)
     }
 
     /// Render one frame from the surface cache (see the [module docs](self)): `vis` is

@@ -22,8 +22,11 @@
 //! The loader decodes only textures that a material uses (a texture used in both a colour and a
 //! data slot is decoded twice), so unused textures are written but not loaded.
 //!
-//! Output is deterministic: JSON keys are sorted (serde_json's default map), floats are written
-//! as the shortest decimal that reads back to the same `f32`, and PNG encoding has no timestamps.
+//! The document is built from `gltf-json`'s typed structs (the schema the loader reads too), so
+//! it writes the spec's defaults (`alphaMode`, `emissiveFactor`, `texCoord`) and leaves out the
+//! primitives' default `mode` (TRIANGLES). Output is deterministic: keys in the structs' order,
+//! floats written as the shortest decimal that reads back to the same `f32`, and PNG encoding
+//! has no timestamps.
 //! Every file is written atomically ([`crate::image_io::write_atomic`]); the `.gltf` goes last,
 //! so a reader never sees a `.gltf` whose buffer or images are missing.
 
@@ -31,7 +34,17 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use glam::{Mat4, Quat, Vec2, Vec3};
-use serde_json::{json, Map, Value};
+use gltf::json::accessor::{ComponentType, GenericComponentType, Type as AccessorType};
+use gltf::json::extensions::scene::khr_lights_punctual::{KhrLightsPunctual, Light, Spot, Type as LightType};
+use gltf::json::material::{EmissiveFactor, PbrBaseColorFactor, PbrMetallicRoughness, StrengthFactor};
+use gltf::json::mesh::Semantic;
+use gltf::json::scene::UnitQuaternion;
+use gltf::json::validation::Checked::Valid;
+use gltf::json::{
+    buffer, camera, extensions, mesh, texture, Accessor, Asset, Buffer, Camera, Image, Index, Material, Mesh, Node,
+    Root, Scene,
+};
+use serde_json::{json, Value};
 
 use crate::image_io::write_atomic;
 use crate::scene::{PunctualLight, WrapMode, LUMENS_PER_WATT};
@@ -365,7 +378,7 @@ impl SceneBuilder {
     /// and deterministically (same builder, same bytes).
     pub fn write(&self, dir: &Path, name: &str) -> Result<WrittenScene> {
         self.validate()?;
-        let (json, bin) = self.encode(name);
+        let (root, bin) = self.encode(name);
         let bin_path = dir.join(format!("{name}.bin"));
         write_atomic(&bin_path, &bin)?;
         let mut textures = Vec::new();
@@ -375,151 +388,181 @@ impl SceneBuilder {
             textures.push(path);
         }
         let gltf = dir.join(format!("{name}.gltf"));
-        let mut text = serde_json::to_string_pretty(&json)?;
+        let mut text = serde_json::to_string_pretty(&root)?;
         text.push('\n');
         write_atomic(&gltf, text.as_bytes())?;
         Ok(WrittenScene { gltf, bin: bin_path, textures })
     }
 
-    /// The glTF JSON and the binary buffer (no I/O).
-    pub fn encode(&self, name: &str) -> (Value, Vec<u8>) {
+    /// The glTF document and the binary buffer (no I/O).
+    pub fn encode(&self, name: &str) -> (Root, Vec<u8>) {
         let mut enc = Encoder::default();
-        let (mut meshes, mut nodes) = (Vec::new(), Vec::new());
+        let mut root = Root::default();
         for m in self.meshes.iter().filter(|m| !m.indices.is_empty()) {
-            let pos = enc.vec3(&m.positions, true);
-            let nrm = enc.vec3(&m.normals, false);
-            let uv = enc.vec2(&m.uvs);
-            let idx = enc.indices(&m.indices);
-            meshes.push(json!({
-                "name": m.name,
-                "primitives": [{
-                    "attributes": {"POSITION": pos, "NORMAL": nrm, "TEXCOORD_0": uv},
-                    "indices": idx,
-                    "material": m.material.0,
-                    "mode": 4,
-                }],
-            }));
-            nodes.push(json!({"name": m.name, "mesh": meshes.len() - 1}));
+            let attributes = [
+                (Semantic::Positions, enc.vec3(&m.positions, true)),
+                (Semantic::Normals, enc.vec3(&m.normals, false)),
+                (Semantic::TexCoords(0), enc.vec2(&m.uvs)),
+            ];
+            let indices = enc.indices(&m.indices);
+            let primitive = mesh::Primitive {
+                attributes: attributes.into_iter().map(|(s, a)| (Valid(s), a)).collect(),
+                extensions: None,
+                extras: Default::default(),
+                indices: Some(indices),
+                material: Some(Index::new(m.material.0)),
+                mode: Valid(mesh::Mode::Triangles),
+                targets: None,
+            };
+            let mesh = Mesh {
+                extensions: None,
+                extras: Default::default(),
+                name: Some(m.name.clone()),
+                primitives: vec![primitive],
+                weights: None,
+            };
+            let index = root.push(mesh);
+            root.nodes.push(Node { name: Some(m.name.clone()), mesh: Some(index), ..node() });
         }
-        let mut root = Map::new();
-        root.insert("asset".into(), json!({"version": "2.0", "generator": "evblur scenegen"}));
+        root.asset = Asset { generator: Some("evblur scenegen".into()), ..root.asset };
         if let Some(c) = &self.camera {
-            let mut persp = json!({"yfov": num(c.yfov), "znear": num(c.znear)});
-            if let Some(a) = c.aspect {
-                persp["aspectRatio"] = num(a);
-            }
-            root.insert("cameras".into(), json!([{"name": c.name, "type": "perspective", "perspective": persp}]));
-            let matrix: Vec<Value> = c.to_world.to_cols_array().into_iter().map(num).collect();
-            nodes.push(json!({"name": c.name, "camera": 0, "matrix": matrix}));
+            let perspective = camera::Perspective {
+                aspect_ratio: c.aspect,
+                yfov: c.yfov,
+                zfar: None,
+                znear: c.znear,
+                extensions: None,
+                extras: Default::default(),
+            };
+            let index = root.push(Camera {
+                name: Some(c.name.clone()),
+                orthographic: None,
+                perspective: Some(perspective),
+                type_: Valid(camera::Type::Perspective),
+                extensions: None,
+                extras: Default::default(),
+            });
+            let matrix = Some(c.to_world.to_cols_array());
+            root.nodes.push(Node { name: Some(c.name.clone()), camera: Some(index), matrix, ..node() });
         }
-        let (materials, mut used) = self.materials_json();
+        let mut used = self.materials(&mut root);
         if !self.lights.is_empty() {
             let mut lights = Vec::new();
             for (i, l) in self.lights.iter().enumerate() {
-                let (json, position, direction) = light_json(l);
-                lights.push(json);
+                let (light, position, direction) = light_entry(l);
+                lights.push(light);
                 // the node's local -Z is the light direction
                 let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, direction.normalize());
-                let mut node = json!({
-                    "name": format!("light_{i}"),
-                    "extensions": {"KHR_lights_punctual": {"light": i}},
-                    "rotation": rotation.to_array().map(num),
+                let mut ext = extensions::scene::Node::default();
+                ext.khr_lights_punctual = Some(KhrLightsPunctual { light: Index::new(i as u32) });
+                root.nodes.push(Node {
+                    name: Some(format!("light_{i}")),
+                    extensions: Some(ext),
+                    rotation: Some(UnitQuaternion(rotation.to_array())),
+                    translation: (position != Vec3::ZERO).then(|| position.to_array()),
+                    ..node()
                 });
-                if position != Vec3::ZERO {
-                    node["translation"] = json!(position.to_array().map(num));
-                }
-                nodes.push(node);
             }
-            root.insert("extensions".into(), json!({"KHR_lights_punctual": {"lights": lights}}));
+            let mut ext = extensions::root::Root::default();
+            ext.khr_lights_punctual = Some(extensions::root::KhrLightsPunctual { lights });
+            root.extensions = Some(ext);
             used.push("KHR_lights_punctual");
             used.sort();
         }
-        if !used.is_empty() {
-            root.insert("extensionsUsed".into(), json!(used));
-        }
-        root.insert("materials".into(), Value::Array(materials));
+        root.extensions_used = used.into_iter().map(String::from).collect();
         if !self.textures.is_empty() {
             let modes = [WrapMode::Repeat, WrapMode::ClampToEdge, WrapMode::MirroredRepeat];
-            let samplers: Vec<Value> = modes
-                .iter()
-                .map(|&w| json!({"magFilter": 9729, "minFilter": 9987, "wrapS": wrap_code(w), "wrapT": wrap_code(w)}))
-                .collect();
-            let images: Vec<Value> = self
-                .textures
-                .iter()
-                .enumerate()
-                .map(|(i, t)| json!({"name": t.name, "uri": texture_uri(i, &t.name)}))
-                .collect();
-            let textures: Vec<Value> = self
-                .textures
-                .iter()
-                .enumerate()
-                .map(|(i, t)| json!({"source": i, "sampler": modes.iter().position(|&w| w == t.wrap).unwrap()}))
-                .collect();
-            root.insert("samplers".into(), Value::Array(samplers));
-            root.insert("images".into(), Value::Array(images));
-            root.insert("textures".into(), Value::Array(textures));
+            for &w in &modes {
+                root.push(texture::Sampler {
+                    mag_filter: Some(Valid(texture::MagFilter::Linear)),
+                    min_filter: Some(Valid(texture::MinFilter::LinearMipmapLinear)),
+                    name: None,
+                    wrap_s: Valid(wrapping(w)),
+                    wrap_t: Valid(wrapping(w)),
+                    extensions: None,
+                    extras: Default::default(),
+                });
+            }
+            for (i, t) in self.textures.iter().enumerate() {
+                let source = root.push(Image {
+                    buffer_view: None,
+                    mime_type: None,
+                    name: Some(t.name.clone()),
+                    uri: Some(texture_uri(i, &t.name)),
+                    extensions: None,
+                    extras: Default::default(),
+                });
+                let sampler = modes.iter().position(|&w| w == t.wrap).expect("every wrap mode has a sampler");
+                root.push(texture::Texture {
+                    name: None,
+                    sampler: Some(Index::new(sampler as u32)),
+                    source,
+                    extensions: None,
+                    extras: Default::default(),
+                });
+            }
         }
-        root.insert("meshes".into(), Value::Array(meshes));
-        let node_ids: Vec<usize> = (0..nodes.len()).collect();
-        root.insert("nodes".into(), Value::Array(nodes));
-        root.insert("scene".into(), json!(0));
-        root.insert("scenes".into(), json!([{"name": name, "nodes": node_ids}]));
-        root.insert("buffers".into(), json!([{"byteLength": enc.bin.len(), "uri": format!("{name}.bin")}]));
-        root.insert("bufferViews".into(), Value::Array(enc.views));
-        root.insert("accessors".into(), Value::Array(enc.accessors));
-        (Value::Object(root), enc.bin)
+        let nodes = (0..root.nodes.len() as u32).map(Index::new).collect();
+        root.scene =
+            Some(root.push(Scene { extensions: None, extras: Default::default(), name: Some(name.into()), nodes }));
+        root.push(Buffer {
+            byte_length: enc.bin.len().into(),
+            name: None,
+            uri: Some(format!("{name}.bin")),
+            extensions: None,
+            extras: Default::default(),
+        });
+        root.buffer_views = enc.views;
+        root.accessors = enc.accessors;
+        (root, enc.bin)
     }
 
-    /// Material JSON entries and the extensions they use (sorted).
-    fn materials_json(&self) -> (Vec<Value>, Vec<&'static str>) {
+    /// Pushes the materials onto `root`; returns the extensions they use (sorted).
+    fn materials(&self, root: &mut Root) -> Vec<&'static str> {
         let (mut strength_used, mut specular_used) = (false, false);
-        let tex = |t: TextureId| json!({"index": t.0});
-        let out = self
-            .materials
-            .iter()
-            .map(|m| {
-                let [r, g, b] = m.base_color.map(num);
-                let mut pbr = json!({
-                    "baseColorFactor": [r, g, b, 1.0],
-                    "metallicFactor": num(m.metallic),
-                    "roughnessFactor": num(m.roughness),
-                });
-                if let Some(t) = m.base_color_texture {
-                    pbr["baseColorTexture"] = tex(t);
+        let info = |t: TextureId| texture::Info {
+            index: Index::new(t.0),
+            tex_coord: 0,
+            extensions: None,
+            extras: Default::default(),
+        };
+        for m in &self.materials {
+            let [r, g, b] = m.base_color;
+            let mut pbr = PbrMetallicRoughness::default();
+            pbr.base_color_factor = PbrBaseColorFactor([r, g, b, 1.0]);
+            pbr.metallic_factor = StrengthFactor(m.metallic);
+            pbr.roughness_factor = StrengthFactor(m.roughness);
+            pbr.base_color_texture = m.base_color_texture.map(info);
+            pbr.metallic_roughness_texture = m.metallic_roughness_texture.map(info);
+            let mut mat = Material::default();
+            mat.name = Some(m.name.clone());
+            mat.pbr_metallic_roughness = pbr;
+            mat.double_sided = m.double_sided;
+            let mut ext = extensions::material::Material::default();
+            // emissive = factor * strength with the factor's largest channel scaled to 1
+            let peak = m.emissive.into_iter().fold(0.0f32, f32::max);
+            if peak > 0.0 {
+                mat.emissive_factor = EmissiveFactor(m.emissive.map(|c| c / peak));
+                let strength = peak * m.emissive_strength;
+                if strength != 1.0 {
+                    let mut e = extensions::material::EmissiveStrength::default();
+                    e.emissive_strength = extensions::material::EmissiveStrengthFactor(strength);
+                    ext.emissive_strength = Some(e);
+                    strength_used = true;
                 }
-                if let Some(t) = m.metallic_roughness_texture {
-                    pbr["metallicRoughnessTexture"] = tex(t);
-                }
-                let mut v = json!({"name": m.name, "pbrMetallicRoughness": pbr, "doubleSided": m.double_sided});
-                let mut ext = Map::new();
-                // emissive = factor * strength with the factor's largest channel scaled to 1
-                let peak = m.emissive.into_iter().fold(0.0f32, f32::max);
-                if peak > 0.0 {
-                    let factor = m.emissive.map(|c| num(c / peak));
-                    v["emissiveFactor"] = json!(factor);
-                    let strength = peak * m.emissive_strength;
-                    if strength != 1.0 {
-                        ext.insert(
-                            "KHR_materials_emissive_strength".into(),
-                            json!({"emissiveStrength": num(strength)}),
-                        );
-                        strength_used = true;
-                    }
-                }
-                if let Some(t) = m.emissive_texture {
-                    v["emissiveTexture"] = tex(t);
-                }
-                if let Some(s) = m.specular {
-                    ext.insert("KHR_materials_specular".into(), json!({"specularFactor": num(s)}));
-                    specular_used = true;
-                }
-                if !ext.is_empty() {
-                    v["extensions"] = Value::Object(ext);
-                }
-                v
-            })
-            .collect();
+            }
+            mat.emissive_texture = m.emissive_texture.map(info);
+            if let Some(f) = m.specular {
+                let mut s = extensions::material::Specular::default();
+                s.specular_factor = extensions::material::SpecularFactor(f);
+                ext.specular = Some(s);
+                specular_used = true;
+            }
+            if ext.emissive_strength.is_some() || ext.specular.is_some() {
+                mat.extensions = Some(ext);
+            }
+            root.push(mat);
+        }
         let mut used = Vec::new();
         if strength_used {
             used.push("KHR_materials_emissive_strength");
@@ -527,7 +570,25 @@ impl SceneBuilder {
         if specular_used {
             used.push("KHR_materials_specular");
         }
-        (out, used)
+        used
+    }
+}
+
+/// A node with nothing set.
+fn node() -> Node {
+    Node {
+        camera: None,
+        children: None,
+        extensions: None,
+        extras: Default::default(),
+        matrix: None,
+        mesh: None,
+        name: None,
+        rotation: None,
+        scale: None,
+        translation: None,
+        skin: None,
+        weights: None,
     }
 }
 
@@ -555,31 +616,41 @@ fn photometric(radiometric: f32) -> f32 {
 }
 
 /// A light's `KHR_lights_punctual` entry, its node position and direction.
-fn light_json(l: &PunctualLight) -> (Value, Vec3, Vec3) {
-    let entry = |kind: &str, power: Vec3| {
+fn light_entry(l: &PunctualLight) -> (Light, Vec3, Vec3) {
+    let entry = |kind: LightType, power: Vec3, spot: Option<Spot>| {
         let peak = power.max_element();
         let color = if peak > 0.0 { power / peak } else { Vec3::ONE };
-        json!({"type": kind, "color": color.to_array().map(num), "intensity": num(photometric(peak))})
+        Light {
+            color: color.to_array(),
+            extensions: None,
+            extras: Default::default(),
+            intensity: photometric(peak),
+            name: None,
+            range: None,
+            spot,
+            type_: Valid(kind),
+        }
     };
     match *l {
-        PunctualLight::Point { position, intensity } => (entry("point", intensity), position, Vec3::NEG_Z),
+        PunctualLight::Point { position, intensity } => {
+            (entry(LightType::Point, intensity, None), position, Vec3::NEG_Z)
+        }
         PunctualLight::Spot { position, direction, intensity, inner_cone, outer_cone } => {
-            let mut v = entry("spot", intensity);
-            v["spot"] = json!({"innerConeAngle": num(inner_cone), "outerConeAngle": num(outer_cone)});
-            (v, position, direction)
+            let spot = Spot { inner_cone_angle: inner_cone, outer_cone_angle: outer_cone };
+            (entry(LightType::Spot, intensity, Some(spot)), position, direction)
         }
         PunctualLight::Directional { direction, irradiance } => {
-            (entry("directional", irradiance), Vec3::ZERO, direction)
+            (entry(LightType::Directional, irradiance, None), Vec3::ZERO, direction)
         }
     }
 }
 
-/// glTF sampler wrap code.
-fn wrap_code(w: WrapMode) -> u32 {
+/// glTF sampler wrapping mode.
+fn wrapping(w: WrapMode) -> texture::WrappingMode {
     match w {
-        WrapMode::Repeat => 10497,
-        WrapMode::ClampToEdge => 33071,
-        WrapMode::MirroredRepeat => 33648,
+        WrapMode::Repeat => texture::WrappingMode::Repeat,
+        WrapMode::ClampToEdge => texture::WrappingMode::ClampToEdge,
+        WrapMode::MirroredRepeat => texture::WrappingMode::MirroredRepeat,
     }
 }
 
@@ -607,54 +678,87 @@ fn encode_png(p: &TexturePixels) -> Result<Vec<u8>> {
 #[derive(Default)]
 struct Encoder {
     bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
+    views: Vec<buffer::View>,
+    accessors: Vec<Accessor>,
 }
 
 impl Encoder {
     /// Append `bytes` as a buffer view (4-byte aligned) with `target`; returns the view index.
-    fn view(&mut self, bytes: &[u8], target: u32) -> usize {
+    fn view(&mut self, bytes: &[u8], target: buffer::Target) -> Index<buffer::View> {
         let offset = self.bin.len();
         self.bin.extend_from_slice(bytes);
         self.bin.resize(self.bin.len().next_multiple_of(4), 0);
-        self.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len(), "target": target}));
-        self.views.len() - 1
+        self.views.push(buffer::View {
+            buffer: Index::new(0),
+            byte_length: bytes.len().into(),
+            byte_offset: Some(offset.into()),
+            byte_stride: None,
+            name: None,
+            target: Some(Valid(target)),
+            extensions: None,
+            extras: Default::default(),
+        });
+        Index::new(self.views.len() as u32 - 1)
+    }
+
+    /// An accessor of `count` elements of `ty` in `view`.
+    fn accessor(
+        &mut self,
+        view: Index<buffer::View>,
+        component: ComponentType,
+        count: usize,
+        ty: AccessorType,
+    ) -> Accessor {
+        Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: count.into(),
+            component_type: Valid(GenericComponentType(component)),
+            extensions: None,
+            extras: Default::default(),
+            type_: Valid(ty),
+            min: None,
+            max: None,
+            name: None,
+            normalized: false,
+            sparse: None,
+        }
     }
 
     /// A float accessor; `bounds` adds per-component min/max.
-    fn floats(&mut self, data: &[f32], dim: usize, ty: &str, bounds: bool) -> usize {
+    fn floats(&mut self, data: &[f32], dim: usize, ty: AccessorType, bounds: bool) -> Index<Accessor> {
         let bytes: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
-        let view = self.view(&bytes, 34962);
-        let mut acc = json!({"bufferView": view, "componentType": 5126, "count": data.len() / dim, "type": ty});
+        let view = self.view(&bytes, buffer::Target::ArrayBuffer);
+        let mut acc = self.accessor(view, ComponentType::F32, data.len() / dim, ty);
         if bounds {
             let (mut lo, mut hi) = (vec![f32::INFINITY; dim], vec![f32::NEG_INFINITY; dim]);
             for (i, &v) in data.iter().enumerate() {
                 lo[i % dim] = lo[i % dim].min(v);
                 hi[i % dim] = hi[i % dim].max(v);
             }
-            acc["min"] = Value::Array(lo.into_iter().map(num).collect());
-            acc["max"] = Value::Array(hi.into_iter().map(num).collect());
+            acc.min = Some(Value::Array(lo.into_iter().map(num).collect()));
+            acc.max = Some(Value::Array(hi.into_iter().map(num).collect()));
         }
         self.accessors.push(acc);
-        self.accessors.len() - 1
+        Index::new(self.accessors.len() as u32 - 1)
     }
 
-    fn vec3(&mut self, v: &[Vec3], bounds: bool) -> usize {
+    fn vec3(&mut self, v: &[Vec3], bounds: bool) -> Index<Accessor> {
         let flat: Vec<f32> = v.iter().flat_map(|p| p.to_array()).collect();
-        self.floats(&flat, 3, "VEC3", bounds)
+        self.floats(&flat, 3, AccessorType::Vec3, bounds)
     }
 
-    fn vec2(&mut self, v: &[Vec2]) -> usize {
+    fn vec2(&mut self, v: &[Vec2]) -> Index<Accessor> {
         let flat: Vec<f32> = v.iter().flat_map(|p| p.to_array()).collect();
-        self.floats(&flat, 2, "VEC2", false)
+        self.floats(&flat, 2, AccessorType::Vec2, false)
     }
 
-    fn indices(&mut self, tris: &[[u32; 3]]) -> usize {
+    fn indices(&mut self, tris: &[[u32; 3]]) -> Index<Accessor> {
         let bytes: Vec<u8> = tris.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
-        let view = self.view(&bytes, 34963);
-        self.accessors
-            .push(json!({"bufferView": view, "componentType": 5125, "count": tris.len() * 3, "type": "SCALAR"}));
-        self.accessors.len() - 1
+        let view = self.view(&bytes, buffer::Target::ElementArrayBuffer);
+        let acc = self.accessor(view, ComponentType::U32, tris.len() * 3, AccessorType::Scalar);
+        self.accessors.push(acc);
+        Index::new(self.accessors.len() as u32 - 1)
     }
 }
 

@@ -395,6 +395,9 @@ impl SceneBuilder {
     }
 
     /// The glTF document and the binary buffer (no I/O).
+    // (gltf-json's extension structs gain fields with its cargo features: `..Default::default()`
+    // keeps this building whichever a dependency turns on)
+    #[allow(clippy::needless_update)]
     pub fn encode(&self, name: &str) -> (Root, Vec<u8>) {
         let mut enc = Encoder::default();
         let mut root = Root::default();
@@ -453,8 +456,8 @@ impl SceneBuilder {
                 lights.push(light);
                 // the node's local -Z is the light direction
                 let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, direction.normalize());
-                let mut ext = extensions::scene::Node::default();
-                ext.khr_lights_punctual = Some(KhrLightsPunctual { light: Index::new(i as u32) });
+                let light = Some(KhrLightsPunctual { light: Index::new(i as u32) });
+                let ext = extensions::scene::Node { khr_lights_punctual: light, ..Default::default() };
                 root.nodes.push(Node {
                     name: Some(format!("light_{i}")),
                     extensions: Some(ext),
@@ -463,9 +466,8 @@ impl SceneBuilder {
                     ..node()
                 });
             }
-            let mut ext = extensions::root::Root::default();
-            ext.khr_lights_punctual = Some(extensions::root::KhrLightsPunctual { lights });
-            root.extensions = Some(ext);
+            let lights = Some(extensions::root::KhrLightsPunctual { lights });
+            root.extensions = Some(extensions::root::Root { khr_lights_punctual: lights, ..Default::default() });
             used.push("KHR_lights_punctual");
             used.sort();
         }
@@ -518,6 +520,9 @@ impl SceneBuilder {
     }
 
     /// Pushes the materials onto `root`; returns the extensions they use (sorted).
+    // (gltf-json's extension structs gain fields with its cargo features: `..Default::default()`
+    // keeps this building whichever a dependency turns on)
+    #[allow(clippy::needless_update)]
     fn materials(&self, root: &mut Root) -> Vec<&'static str> {
         let (mut strength_used, mut specular_used) = (false, false);
         let info = |t: TextureId| texture::Info {
@@ -528,16 +533,20 @@ impl SceneBuilder {
         };
         for m in &self.materials {
             let [r, g, b] = m.base_color;
-            let mut pbr = PbrMetallicRoughness::default();
-            pbr.base_color_factor = PbrBaseColorFactor([r, g, b, 1.0]);
-            pbr.metallic_factor = StrengthFactor(m.metallic);
-            pbr.roughness_factor = StrengthFactor(m.roughness);
-            pbr.base_color_texture = m.base_color_texture.map(info);
-            pbr.metallic_roughness_texture = m.metallic_roughness_texture.map(info);
-            let mut mat = Material::default();
-            mat.name = Some(m.name.clone());
-            mat.pbr_metallic_roughness = pbr;
-            mat.double_sided = m.double_sided;
+            let pbr = PbrMetallicRoughness {
+                base_color_factor: PbrBaseColorFactor([r, g, b, 1.0]),
+                metallic_factor: StrengthFactor(m.metallic),
+                roughness_factor: StrengthFactor(m.roughness),
+                base_color_texture: m.base_color_texture.map(info),
+                metallic_roughness_texture: m.metallic_roughness_texture.map(info),
+                ..Default::default()
+            };
+            let mut mat = Material {
+                name: Some(m.name.clone()),
+                pbr_metallic_roughness: pbr,
+                double_sided: m.double_sided,
+                ..Default::default()
+            };
             let mut ext = extensions::material::Material::default();
             // emissive = factor * strength with the factor's largest channel scaled to 1
             let peak = m.emissive.into_iter().fold(0.0f32, f32::max);
@@ -545,17 +554,16 @@ impl SceneBuilder {
                 mat.emissive_factor = EmissiveFactor(m.emissive.map(|c| c / peak));
                 let strength = peak * m.emissive_strength;
                 if strength != 1.0 {
-                    let mut e = extensions::material::EmissiveStrength::default();
-                    e.emissive_strength = extensions::material::EmissiveStrengthFactor(strength);
+                    let factor = extensions::material::EmissiveStrengthFactor(strength);
+                    let e = extensions::material::EmissiveStrength { emissive_strength: factor, ..Default::default() };
                     ext.emissive_strength = Some(e);
                     strength_used = true;
                 }
             }
             mat.emissive_texture = m.emissive_texture.map(info);
             if let Some(f) = m.specular {
-                let mut s = extensions::material::Specular::default();
-                s.specular_factor = extensions::material::SpecularFactor(f);
-                ext.specular = Some(s);
+                let factor = extensions::material::SpecularFactor(f);
+                ext.specular = Some(extensions::material::Specular { specular_factor: factor, ..Default::default() });
                 specular_used = true;
             }
             if ext.emissive_strength.is_some() || ext.specular.is_some() {

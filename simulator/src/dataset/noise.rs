@@ -170,8 +170,8 @@ pub struct NoiseReport {
     pub pipeline_map: DiffMap,
     /// The segment's first frame as the dataset renders it (linear), to show the map on.
     pub first_frame: crate::base::image::Image,
-    /// With denoising on (path-traced frames; surface-cache frames are filtered inside their
-    /// render, so there is no unfiltered sequence to compare): the denoised frames at `spp`
+    /// With denoising on (path-traced frames; surface-cache frames have no image filter, so
+    /// there is no unfiltered sequence to compare): the denoised frames at `spp`
     /// against *unfiltered* frames at `ref_spp`
     /// (what the filter changes besides noise shows up here, next to the reference's own noise).
     pub vs_unfiltered: Option<Comparison>,

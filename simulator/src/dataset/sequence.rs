@@ -88,7 +88,7 @@ impl<'p, 'r> SequenceRenderer<'p, 'r> {
     }
 
     /// Whether [`SequenceRenderer::raw`] has the unfiltered renders: denoised path-traced
-    /// frames (surface-cache frames are filtered inside their render).
+    /// frames (surface-cache frames have no image filter and keep no raw renders).
     pub fn keeps_raw(&self) -> bool {
         self.plan.config.denoise && self.plan.config.shading == super::Shading::PathTraced
     }

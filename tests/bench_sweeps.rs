@@ -176,7 +176,9 @@ fn bad_sweep_files_name_the_axis_and_the_fix() {
         |setting: &str, values: &str| format!("[sweep]\n[[sweep.axes]]\nsetting = \"{setting}\"\nvalues = {values}\n");
     check("", &["bad.toml", "sweep", "missing"]);
     check(&axis("dataset.exposure", "[5]"), &["sweep.axes", "exposure", "exposure_ms"]);
-    check(&axis("exposure_ms", "[5]"), &["sweep.axes[0]", "dataset.<field>"]);
+    check(&axis("exposure_ms", "[5]"), &["sweep.axes[0]", "dataset.<key>"]);
+    check(&axis("dataset.thresold", "[0.2]"), &["sweep.axes", "thresold", "DatasetConfig", "threshold_sigma"]);
+    check(&axis("dataset.width", "[[1, 2]]"), &["sweep.axes", "dataset.width", "invalid type"]);
     check(&axis("dataset.exposure_ms", "[]"), &["sweep.axes[0]", "empty"]);
     check(&axis("dataset.exposure_ms", "[5, 5]"), &["appears twice"]);
     check(&axis("dataset.exposure_ms", "[\"long\"]"), &["finite numbers"]);

@@ -51,6 +51,11 @@ fn plan(toml: &Path) -> Plan {
     Plan::resolve(toml, &Overrides::default()).unwrap()
 }
 
+/// Overrides that set the scene file's `[dataset] shading`.
+fn shaded(shading: Shading) -> Overrides {
+    Overrides::default().with("shading", toml::Value::try_from(shading).unwrap())
+}
+
 fn opts(out: &Path, cache: Option<PathBuf>) -> RunOptions {
     RunOptions { out: out.to_path_buf(), frames_cache: cache, ..RunOptions::default() }
 }
@@ -200,7 +205,7 @@ fn rerun_is_a_noop_and_other_settings_conflict() {
     assert!(s.already_complete && s.frames_rendered == 0);
     assert_eq!(files(&out), before);
 
-    let other = Plan::resolve(&toml, &Overrides { exposure_ms: Some(4.0), ..Overrides::default() }).unwrap();
+    let other = Plan::resolve(&toml, &Overrides::default().with("exposure_ms", 4.0)).unwrap();
     let e = write_dataset(&other, &opts(&out, None)).unwrap_err();
     assert!(matches!(e, DatasetError::Conflict { .. }), "{e}");
     assert!(e.to_string().contains("dataset.toml") && e.to_string().contains("other settings"), "{e}");
@@ -216,7 +221,7 @@ fn an_interrupted_run_resumes_to_the_same_bytes() {
 fn resumes_to_the_same_bytes(shading: Shading) {
     let dir = temp_dir("dataset", &format!("resume-{shading:?}"));
     let toml = tiny_scene(&dir);
-    let p = Plan::resolve(&toml, &Overrides { shading: Some(shading), ..Overrides::default() }).unwrap();
+    let p = Plan::resolve(&toml, &shaded(shading)).unwrap();
     let (a, b) = (dir.join("a"), dir.join("b"));
     write_dataset(&p, &opts(&a, None)).unwrap();
 
@@ -254,8 +259,7 @@ fn resumes_to_the_same_bytes(shading: Shading) {
     // views it moves (none here: view times do not depend on the exposure when first_view_ms is set)
     let cache = dir.join("cache");
     write_dataset(&p, &opts(&dir.join("c"), Some(cache.clone()))).unwrap();
-    let swept =
-        Overrides { shading: Some(shading), exposure_ms: Some(4.0), threshold: Some(0.3), ..Overrides::default() };
+    let swept = Overrides { threshold: Some(0.3), ..shaded(shading).with("exposure_ms", 4.0) };
     let p2 = Plan::resolve(&toml, &swept).unwrap();
     let s = write_dataset(&p2, &opts(&dir.join("d"), Some(cache))).unwrap();
     assert_eq!((s.frames_rendered, s.sharp_rendered), (0, 0));
@@ -378,14 +382,11 @@ fn fixed_noise_pattern_fires_fewer_noise_events_than_per_frame_noise() {
     let dir = temp_dir("dataset", "noise");
     let toml = tiny_scene(&dir);
     let opts = NoiseOptions { frames: 12, factor: 4, ..NoiseOptions::default() };
-    let run_radius = |pattern, denoise, radius| {
-        let o = Overrides {
-            shading: Some(Shading::PathTraced),
-            noise_pattern: Some(pattern),
-            denoise: Some(denoise),
-            temporal_radius: Some(radius),
-            ..Overrides::default()
-        };
+    let run_radius = |pattern: NoisePattern, denoise: bool, radius: u32| {
+        let o = shaded(Shading::PathTraced)
+            .with("noise_pattern", toml::Value::try_from(pattern).unwrap())
+            .with("denoise", denoise)
+            .with("temporal_radius", radius);
         measure(&Plan::resolve(&toml, &o).unwrap(), &opts).unwrap()
     };
     let run = |pattern, denoise| run_radius(pattern, denoise, 4);
@@ -456,14 +457,16 @@ fn sweep_overrides_reach_the_plan_and_a_shared_frame_cache_skips_rendering() {
     let over = |o: Overrides| Plan::resolve(&toml, &o);
 
     // event and exposure settings keep the render key: the frames can be shared
-    let noisy = over(Overrides {
-        exposure_ms: Some(4.0),
-        threshold_sigma: Some(0.03),
-        leak_rate_hz: Some(0.5),
-        shot_noise_rate_hz: Some(2.0),
-        refractory_ms: Some(0.25),
-        ..Overrides::default()
-    })
+    let noisy = over(
+        Overrides {
+            threshold_sigma: Some(0.03),
+            leak_rate_hz: Some(0.5),
+            shot_noise_rate_hz: Some(2.0),
+            refractory_ms: Some(0.25),
+            ..Overrides::default()
+        }
+        .with("exposure_ms", 4.0),
+    )
     .unwrap();
     assert_eq!(noisy.render_key, base.render_key);
     assert_ne!(noisy.settings_hash, base.settings_hash);
@@ -476,14 +479,7 @@ fn sweep_overrides_reach_the_plan_and_a_shared_frame_cache_skips_rendering() {
 
     // the temporal window's stride shapes the frames (as used: at most the radius)
     let stride = |s: u32, r: u32| {
-        over(Overrides {
-            shading: Some(Shading::PathTraced),
-            temporal_stride: Some(s),
-            temporal_radius: Some(r),
-            ..Overrides::default()
-        })
-        .unwrap()
-        .render_key
+        over(shaded(Shading::PathTraced).with("temporal_stride", s).with("temporal_radius", r)).unwrap().render_key
     };
     assert_ne!(stride(1, 4), stride(2, 4));
     assert_eq!(stride(4, 4), stride(9, 4));
@@ -556,11 +552,21 @@ fn set_changes_any_setting_of_the_scene_file_and_names_each_mistake() {
     let with = |sets: &[&str], o: Overrides| {
         Plan::resolve(&toml, &Overrides { set: sets.iter().map(|s| s.to_string()).collect(), ..o })
     };
-    // A set value is the same dataset as the named override of it (same settings hash).
-    let named = Plan::resolve(&toml, &Overrides { exposure_ms: Some(4.0), ..Overrides::default() }).unwrap();
+    // A set value is the same dataset as a matrix's `dataset = { exposure_ms = 4.0 }` key, and
+    // as the file with that value written in it (same settings hash).
+    let keyed = Plan::resolve(&toml, &Overrides::default().with("exposure_ms", 4.0)).unwrap();
     let set = with(&["dataset.exposure_ms=4.0"], Overrides::default()).unwrap();
-    assert_eq!(set.settings_hash, named.settings_hash);
+    assert_eq!(set.settings_hash, keyed.settings_hash);
     assert_ne!(set.settings_hash, plan(&toml).settings_hash);
+    let written = dir.join("written.toml");
+    let text = std::fs::read_to_string(&toml).unwrap();
+    assert!(text.contains("exposure_ms = "), "the tiny scene sets its exposure");
+    let text: String = text
+        .lines()
+        .map(|l| if l.starts_with("exposure_ms = ") { "exposure_ms = 4.0\n".into() } else { format!("{l}\n") })
+        .collect();
+    std::fs::write(&written, text).unwrap();
+    assert_eq!(Plan::resolve(&written, &Overrides::default()).unwrap().settings_hash, set.settings_hash);
     // Settings no flag names: a nested event-noise table (created: the file has no [events.noise]),
     // a [dataset] field, the trajectory.
     let p = with(
@@ -570,9 +576,13 @@ fn set_changes_any_setting_of_the_scene_file_and_names_each_mistake() {
     .unwrap();
     assert_eq!((p.events.noise.leak_rate_hz, p.config.glossy_block), (0.25, 3));
     assert_ne!(p.render_key, plan(&toml).render_key, "the trajectory is part of the render key");
-    // The named overrides apply after the sets.
-    let p = with(&["dataset.exposure_ms=4.0"], Overrides { exposure_ms: Some(6.0), ..Overrides::default() }).unwrap();
-    assert_eq!(p.config.exposure_ms, 6.0);
+    // The order: the [dataset] keys, then the sets, then the shorthands.
+    let keyed = Overrides { threshold: Some(0.4), ..Overrides::default().with("exposure_ms", 6.0) };
+    let p = with(&["dataset.exposure_ms=4.0", "events.c_pos=0.2"], keyed).unwrap();
+    assert_eq!((p.config.exposure_ms, p.events.c_pos, p.events.c_neg), (4.0, 0.4, 0.4));
+    // A key that is not one of [dataset]'s is named, with where the keys are.
+    let e = Plan::resolve(&toml, &Overrides::default().with("exposur_ms", 4.0)).unwrap_err().to_string();
+    assert!(e.contains("dataset.exposur_ms") && e.contains("DatasetConfig") && e.contains("scene.toml"), "{e}");
     for (sets, says) in [
         (&["dataset.exposure_ms"][..], "expected KEY=VALUE"),
         (&["dataset.exposur_ms=4"][..], "exposur_ms"),

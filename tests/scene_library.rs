@@ -23,8 +23,7 @@ fn every_dataset_scene_makes_a_dataset_that_passes_the_check() {
     }
     let dir = temp_dir("scenes", "datasets");
     // thumbnails: 1 spp, 48x32 (the frame count, views and timing stay the scene's own)
-    let small =
-        Overrides { width: Some(48), height: Some(32), spp: Some(1), sharp_spp: Some(1), ..Overrides::default() };
+    let small = Overrides::default().with("width", 48).with("height", 32).with("spp", 1).with("sharp_spp", 1);
     for name in &names {
         let toml = scenes.join(name).join("scene.toml");
         // the Cornell-box scenes take the default surface-cache frames. The big scenes take
@@ -32,8 +31,11 @@ fn every_dataset_scene_makes_a_dataset_that_passes_the_check() {
         // spacings that do not follow the resolution, so at 48x32 they would spend minutes per
         // scene filling points far finer than a pixel (their surface-cache frames are measured
         // by `evsim dataset-fidelity`, docs/fidelity.md)
-        let shading = (!["cbox", "tiny"].contains(&name.as_str())).then_some(Shading::PathTraced);
-        let over = Overrides { shading, ..small.clone() };
+        let over = if ["cbox", "tiny"].contains(&name.as_str()) {
+            small.clone()
+        } else {
+            small.clone().with("shading", toml::Value::try_from(Shading::PathTraced).unwrap())
+        };
         let plan = Plan::resolve(&toml, &over).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(plan.scene.warnings.is_empty(), "{name}: {:?}", plan.scene.warnings);
         let out = dir.join(name);

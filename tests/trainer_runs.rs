@@ -33,8 +33,7 @@ fn root() -> &'static Path {
 /// `sensor`, written into `name` under the test folder.
 fn write_tiny(name: &str, sensor: simulator::events::Sensor) -> PathBuf {
     let toml = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/tiny/scene.toml");
-    let small =
-        Overrides { width: Some(32), height: Some(24), spp: Some(1), sharp_spp: Some(1), ..Overrides::default() };
+    let small = Overrides::default().with("width", 32).with("height", 24).with("spp", 1).with("sharp_spp", 1);
     let mut plan = Plan::resolve(&toml, &small).unwrap();
     plan.events.sensor = sensor;
     let out = root().join(name);

@@ -13,8 +13,8 @@ pub(super) fn base_dataset() -> &'static Path {
         let dir = case_dir("dataset", "base");
         let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/tiny/scene.toml");
         let mut args = vec![OsString::from("dataset"), p(&scene), "--out".into(), p(&dir)];
-        args.extend(os(&["--width", "32", "--height", "24", "--spp", "1", "--sharp-spp", "1", "--quiet"]));
-        args.extend(os(&["--shading", "path-traced"]));
+        args.extend(os(&["--set", "dataset.width=32", "--set", "dataset.height=24", "--set", "dataset.spp=1"]));
+        args.extend(os(&["--set", "dataset.sharp_spp=1", "--set", "dataset.shading=path_traced", "--quiet"]));
         run_ok(evsim(), &args);
         dir
     })

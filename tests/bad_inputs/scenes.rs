@@ -555,7 +555,8 @@ pub(super) fn scene_toml_cases() -> Vec<Case> {
         write_gltf(&dir, &doc, &bin);
         std::fs::write(dir.join("scene.toml"), text).unwrap();
         let mut args = vec![OsString::from("dataset"), p(&dir.join("scene.toml"))];
-        args.extend(["--out".into(), p(&dir.join("out")), "--quiet".into(), "--shading".into(), "path-traced".into()]);
+        args.extend(os(&["--quiet", "--set", "dataset.shading=path_traced"]));
+        args.extend(["--out".into(), p(&dir.join("out"))]);
         args
     };
     run_ok(evsim(), &setup("base", SCENE_TOML));

@@ -208,7 +208,7 @@ fn check_images(data: &Dataset, source: &ImageSource) -> Result<Vec<usize>, Trai
         return Err(TrainError::Missing {
             path: data.dir.clone(),
             what: "no training views (every view is a test view)".into(),
-            fix: "write a dataset with more views (evsim dataset --views)".into(),
+            fix: "write a dataset with more views (evsim dataset --set dataset.views=N)".into(),
         });
     }
     if *source == ImageSource::Sharp && train.iter().any(|&v| data.views[v].sharp.is_none()) {

@@ -23,7 +23,9 @@
 //! [[scenes]]
 //! scene = "../../scenes/tiny/scene.toml"   # simulated (relative to this file)
 //! dataset = { spp = 2 }                     # optional: this scene's overrides
-//! # (or any setting of the scene file: dataset = { set = ["dataset.glossy_block=2"] })
+//! # (keys of the scene file's [dataset] table, the shorthands threshold, threshold_sigma,
+//! # leak_rate_hz, shot_noise_rate_hz, refractory_ms and speed, and any setting of the scene
+//! # file: set = ["events.c_pos=0.3"]; simulator::dataset::Overrides)
 //!
 //! [[scenes]]
 //! name = "blurfactory"
@@ -57,7 +59,7 @@ pub struct MatrixConfig {
     /// (a dotted path of `evtrain presets --show NAME`; `none` switches a part off).
     #[serde(default)]
     pub set: Vec<String>,
-    /// Simulator overrides for every simulated scene (a scene's own `dataset` wins per field).
+    /// Simulator overrides for every simulated scene (a scene's own `dataset` wins key by key).
     #[serde(default)]
     pub dataset: DatasetOverrides,
     /// The methods: the rows of the table.
@@ -102,11 +104,14 @@ pub struct SceneEntry {
     /// matrix file; used as it is (no overrides).
     #[serde(default)]
     pub data: Option<PathBuf>,
-    /// This scene's simulator overrides, over the matrix's `[dataset]` field by field.
+    /// This scene's simulator overrides, over the matrix's `[dataset]` key by key (its `set`
+    /// after the matrix's).
     #[serde(default)]
     pub dataset: DatasetOverrides,
 }
 
-/// Simulator overrides of a matrix's or a scene's `[dataset]` table (the simulator's own type;
-/// unknown keys rejected).
+/// Simulator overrides of a matrix's or a scene's `dataset` table (the simulator's own type):
+/// keys of the scene file's `[dataset]` table, the shorthands `threshold`, `threshold_sigma`,
+/// `leak_rate_hz`, `shot_noise_rate_hz`, `refractory_ms`, `speed`, and `set`; any other key is
+/// rejected when the matrix is planned.
 pub type DatasetOverrides = Overrides;

@@ -253,6 +253,12 @@ fn resolve_scenes(file: &Path, base: &Path, cfg: &MatrixConfig) -> Result<Vec<Sc
             "is empty; add a [[scenes]] table with scene = \"path/to/scene.toml\" or data = \"dataset folder\"".into(),
         ));
     }
+    // the dataset tables' keys and shorthands, named as in the matrix before any scene is read
+    let in_table = |key: String| if key.starts_with("dataset.") { key } else { format!("dataset.{key}") };
+    cfg.dataset.validate().map_err(|(key, message)| bad(in_table(key), message))?;
+    for (i, s) in cfg.scenes.iter().enumerate() {
+        s.dataset.validate().map_err(|(key, message)| bad(format!("scenes[{i}].{}", in_table(key)), message))?;
+    }
     let mut out: Vec<ScenePlan> = Vec::new();
     for (i, s) in cfg.scenes.iter().enumerate() {
         let (path, simulate) = match (&s.scene, &s.data) {

@@ -64,7 +64,7 @@ dataset = {{ sharp_spp = 8, height = 32 }}
     assert!(plan.cells.windows(2).all(|w| w[0].key < w[1].key), "sorted by key");
     let names: Vec<&str> = plan.scenes.iter().map(|s| s.name.as_str()).collect();
     assert_eq!(names, ["tiny", "tiny-sharp-spp"]);
-    // The scene's overrides go over the matrix's, field by field.
+    // The scene's overrides go over the matrix's, key by key.
     let SceneSource::Simulate(p) = &plan.scenes[1].source else { panic!("simulated") };
     assert_eq!((p.config.width, p.config.height, p.sharp_spp), (32, 32, Some(8)));
     assert_ne!(plan.scenes[0].identity, plan.scenes[1].identity);
@@ -113,7 +113,10 @@ fn mistakes_name_the_file_the_field_and_the_fix() {
         (format!("scale = \"cpu\"\n{nerf}{scene}{scene}"), &["scenes[1].name", "`tiny` is also scenes[0]'s name"]),
         (format!("scale = \"cpu\"\n{nerf}{scene}name = \"datasets\"\n"), &["scenes[0].name", "reserved"]),
         (format!("scale = \"cpu\"\n{nerf}{scene}dataset = {{ width = 0 }}\n"), &["scenes[0].scene", "dataset.width/height", "1..=16384"]),
-        (format!("scale = \"cpu\"\n{nerf}{scene}dataset = {{ widht = 3 }}\n"), &["unknown field `widht`"]),
+        (format!("scale = \"cpu\"\n{nerf}{scene}dataset = {{ widht = 3 }}\n"), &["scenes[0].dataset.widht", "unknown field `widht`", "DatasetConfig", "docs/simulator.md"]),
+        (format!("scale = \"cpu\"\n[dataset]\nspp = \"many\"\n{nerf}{scene}"), &["dataset.spp", "invalid type"]),
+        (format!("scale = \"cpu\"\n{nerf}{scene}dataset = {{ speed = 0 }}\n"), &["scenes[0].dataset.speed", "positive factor"]),
+        (format!("scale = \"cpu\"\n{nerf}{scene}dataset = {{ set = [\"dataset.widht=3\"] }}\n"), &["scenes[0].scene", "widht"]),
         (format!("scale = \"cpu\"\n{nerf}[[scenes]]\ndata = \".\"\ndataset = {{ spp = 2 }}\n"), &["scenes[0].dataset", "used as it is"]),
     ];
     for (text, says) in cases {

@@ -16,9 +16,10 @@
 //! label = "exposure (ms)"
 //! ```
 //!
-//! A `dataset.<field>` setting is a field of the matrix's `[dataset]` table (the simulator's
-//! overrides: `exposure_ms`, `threshold`, `threshold_sigma`, `leak_rate_hz`,
-//! `shot_noise_rate_hz`, `refractory_ms`, `speed`, `views`, ...), set on every scene over the
+//! A `dataset.<key>` setting is a key of the matrix's `[dataset]` table (the simulator's
+//! overrides, `simulator::dataset::Overrides`): a key of the scene file's `[dataset]` table
+//! (`exposure_ms`, `views`, `width`, ...) or a shorthand (`threshold`, `threshold_sigma`,
+//! `leak_rate_hz`, `shot_noise_rate_hz`, `refractory_ms`, `speed`), set on every scene over the
 //! scene's own value. A `train.<key>` setting is an `evtrain --set` key (`events.threshold`,
 //! `iterations`, ...) appended to the matrix's `set`, so a method's own `set` of the same key wins.
 
@@ -39,7 +40,7 @@ pub struct SweepSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AxisSpec {
-    /// `dataset.<field>` (a simulator override) or `train.<key>` (an `evtrain --set` key).
+    /// `dataset.<key>` (a simulator override) or `train.<key>` (an `evtrain --set` key).
     pub setting: String,
     /// The values, in plotting order: numbers, or arrays of numbers (plotted at their first
     /// element, e.g. `events.threshold = [0.3, 0.3]`).

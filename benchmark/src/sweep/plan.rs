@@ -15,7 +15,8 @@ use crate::matrix::MatrixPlan;
 /// Where a swept setting goes.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Setting {
-    /// A field of the simulator's overrides (the `[dataset]` table).
+    /// A key of the matrix's `dataset` table: of the scene file's `[dataset]` table, or a
+    /// shorthand of the simulator's overrides.
     Dataset(String),
     /// An `evtrain --set` key.
     Train(String),
@@ -191,7 +192,9 @@ fn resolve_axis(a: &AxisSpec) -> Result<Axis, String> {
         Some(("train", k)) if !k.is_empty() => Setting::Train(k.to_string()),
         _ => {
             return Err(format!(
-                "setting `{}`: expected dataset.<field> (e.g. dataset.exposure_ms) or train.<key> (e.g. train.events.threshold)",
+                "setting `{}`: expected dataset.<key> (a key of the scene file's [dataset] table or a \
+                 shorthand such as threshold; e.g. dataset.exposure_ms) or train.<key> (e.g. \
+                 train.events.threshold)",
                 a.setting
             ))
         }
@@ -230,13 +233,17 @@ fn apply(cfg: &mut MatrixConfig, setting: &Setting, value: &toml::Value) -> Resu
         Setting::Dataset(field) => {
             let mut t = toml::Table::new();
             t.insert(field.clone(), value.clone());
-            let o: DatasetOverrides = toml::Value::Table(t).try_into().map_err(|e: toml::de::Error| {
-                format!(
-                    "{}; dataset settings are the fields of simulator::dataset::Overrides (exposure_ms, threshold, \
-                     threshold_sigma, leak_rate_hz, shot_noise_rate_hz, refractory_ms, speed, views, ...)",
-                    e.message().trim_end()
-                )
-            })?;
+            let keys = "dataset.<key> takes a key of a scene file's [dataset] table (exposure_ms, views, width, ...: \
+                        simulator::dataset::DatasetConfig, docs/simulator.md) or a shorthand of \
+                        simulator::dataset::Overrides (threshold, threshold_sigma, leak_rate_hz, shot_noise_rate_hz, \
+                        refractory_ms, speed)";
+            let o: DatasetOverrides = toml::Value::Table(t)
+                .try_into()
+                .map_err(|e: toml::de::Error| format!("{}; {keys}", e.message().trim_end()))?;
+            if field == "set" {
+                return Err(format!("dataset.set cannot be swept; {keys}"));
+            }
+            o.validate().map_err(|(_, message)| message)?;
             cfg.dataset = cfg.dataset.merged(&o);
             for s in &mut cfg.scenes {
                 s.dataset = s.dataset.merged(&o);

@@ -3,7 +3,8 @@
 //! path into the document, VALUE a TOML value (`0.3`, `true`, `[0.3, 0.3]`, `{k = 5}`; a bare
 //! word is a string) or `none`, which removes the key (an optional part switched off). The
 //! typed read that follows rejects unknown keys and values of the wrong type, so a setting is
-//! declared once: in its struct, with its doc.
+//! declared once: in its struct, with its doc. [`field_names`] lists a struct's keys for help
+//! texts and errors, from the same declaration.
 
 /// How [`apply_sets`] words its errors for one command.
 #[derive(Clone, Copy, Debug)]
@@ -67,9 +68,57 @@ pub fn apply_sets(root: &mut toml::Table, sets: &[String], w: SetWording) -> Res
     Ok(())
 }
 
+/// The keys of a struct's TOML table: the field names its `Deserialize` impl asks for (serde's
+/// names, renames applied), in declaration order; empty for a type that is not a struct. This is
+/// how help texts and errors list a table's keys without a hand-kept copy of them.
+pub fn field_names<'de, T: serde::Deserialize<'de>>() -> &'static [&'static str] {
+    let mut probe = FieldProbe(&[]);
+    let _ = T::deserialize(&mut probe);
+    probe.0
+}
+
+/// A deserializer that records the field list of `deserialize_struct` and gives no data.
+struct FieldProbe(&'static [&'static str]);
+
+impl<'de> serde::Deserializer<'de> for &mut FieldProbe {
+    type Error = serde::de::value::Error;
+
+    fn deserialize_any<V: serde::de::Visitor<'de>>(self, _: V) -> Result<V::Value, Self::Error> {
+        Err(serde::de::Error::custom("field probe: no data"))
+    }
+
+    fn deserialize_struct<V: serde::de::Visitor<'de>>(
+        self,
+        _name: &'static str,
+        fields: &'static [&'static str],
+        _: V,
+    ) -> Result<V::Value, Self::Error> {
+        self.0 = fields;
+        Err(serde::de::Error::custom("field probe: no data"))
+    }
+
+    serde::forward_to_deserialize_any! {
+        bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes byte_buf option
+        unit unit_struct newtype_struct seq tuple tuple_struct map enum identifier ignored_any
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn field_names_lists_a_structs_keys() {
+        #[derive(serde::Deserialize)]
+        #[allow(dead_code)]
+        struct S {
+            a: u32,
+            #[serde(rename = "b_renamed")]
+            b: f32,
+        }
+        assert_eq!(field_names::<S>(), ["a", "b_renamed"]);
+        assert!(field_names::<u32>().is_empty());
+    }
 
     const W: SetWording = SetWording { flag: "--set", example: "a.b=1", missing: "misspelt?", create_tables: false };
 

@@ -41,8 +41,20 @@ pub const SETTABLE: [&str; 3] = ["dataset", "events", "trajectory"];
 
 /// As [`parse`], with `sets` applied to the file's TOML first
 /// ([`crate::base::settings::apply_sets`]; keys under [`SETTABLE`] only, missing tables
-/// created); the typed read that follows checks every key and value.
+/// created); the typed read that follows checks every key and value. When the file cannot be
+/// read by itself either, its own error is reported (it names the line and the key; a typed
+/// read of the changed document could not).
 pub fn parse_with_sets(text: &str, path: &Path, sets: &[String]) -> Result<DatasetDescription, SceneError> {
+    let as_written = parse(text, path);
+    match (sets_applied(text, path, sets), as_written) {
+        (Ok(desc), _) => Ok(desc),
+        (Err(_), Err(own)) => Err(own),
+        (Err(e), Ok(_)) => Err(e),
+    }
+}
+
+/// The file's TOML with `sets` applied, read as a description.
+fn sets_applied(text: &str, path: &Path, sets: &[String]) -> Result<DatasetDescription, SceneError> {
     use crate::base::settings::{apply_sets, SetWording};
     let invalid = |message: String| SceneError::invalid(path, "--set", message);
     let mut table: toml::Table =
@@ -64,7 +76,30 @@ pub fn parse_with_sets(text: &str, path: &Path, sets: &[String]) -> Result<Datas
     };
     // (the error's element is `--set` already)
     apply_sets(&mut table, sets, wording).map_err(|e| invalid(e.trim_start_matches("--set ").to_string()))?;
-    table
-        .try_into()
-        .map_err(|e: toml::de::Error| invalid(format!("after {}: {}", sets.join(", "), e.message().trim_end())))
+    table.try_into().map_err(|e: toml::de::Error| {
+        invalid(format!(
+            "after {}: {}; the settings are explained in docs/simulator.md (the [dataset] keys are listed \
+                 under --set in `evsim dataset --help`)",
+            sets.join(", "),
+            e.message().trim_end()
+        ))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sets_report_the_files_own_mistakes_with_their_line_and_their_own_by_the_set() {
+        let path = Path::new("scene.toml");
+        let file = |spp: &str| format!("scene = \"s.obj\"\n[dataset]\nspp = {spp}\n");
+        let e = parse_with_sets(&file("\"two\""), path, &["dataset.width=8".into()]).unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("spp"), "{e}");
+        let e = parse_with_sets(&file("2"), path, &["dataset.width=wide".into()]).unwrap_err().to_string();
+        assert!(e.contains("dataset.width=wide") && e.contains("invalid type"), "{e}");
+        // a set may replace what the file gets wrong
+        let d = parse_with_sets(&file("\"two\""), path, &["dataset.spp=2".into()]).unwrap();
+        assert_eq!(d.dataset.map(|d| d.spp), Some(2));
+    }
 }

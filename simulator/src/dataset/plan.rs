@@ -206,13 +206,15 @@ impl Plan {
         };
         let text = std::fs::read_to_string(scene_file)
             .map_err(|e| DatasetError::io(scene_file, "cannot read the scene file", e))?;
-        let desc = if overrides.set.is_empty() {
+        let bad = |field: &str, message: String| DatasetError::config(scene_file, field, message);
+        overrides.validate().map_err(|(field, message)| bad(&field, message))?;
+        // the [dataset] keys and `set` on the file's TOML; the shorthands below, once it is read
+        let sets = overrides.sets();
+        let desc = if sets.is_empty() {
             description::parse(&text, scene_file)?
         } else {
-            description::parse_with_sets(&text, scene_file, &overrides.set)?
+            description::parse_with_sets(&text, scene_file, &sets)?
         };
-        let bad = |field: &str, message: String| DatasetError::config(scene_file, field, message);
-        overrides.validate().map_err(|(field, message)| bad(field, message))?;
         let trajectory_config = desc.trajectory.as_ref().map(|t| overrides.apply_speed(t)).ok_or_else(|| {
             bad(
                 "trajectory",
@@ -221,9 +223,9 @@ impl Plan {
                     .into(),
             )
         })?;
-        let mut config = desc.dataset.clone().unwrap_or_default();
+        let config = desc.dataset.clone().unwrap_or_default();
         let mut events = desc.events.clone().unwrap_or_default();
-        overrides.apply(&mut config, &mut events);
+        overrides.apply_events(&mut events);
         validate(&config, &events, scene_file)?;
 
         let trajectory = trajectory_config.resolve().map_err(|e| bad("trajectory", e.to_string()))?;

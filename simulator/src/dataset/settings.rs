@@ -35,7 +35,10 @@
 //! response = { type = "gamma", gamma = 2.2 }
 //! ```
 //!
-//! Command-line overrides ([`Overrides`]) are applied on top before anything is resolved.
+//! [`Overrides`] (`evsim --set`, a benchmark matrix's `dataset = {...}` tables) are applied on top
+//! before anything is resolved.
+
+use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
@@ -59,7 +62,7 @@ pub enum NoisePattern {
 }
 
 /// How the frames of a sequence are made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Shading {
     /// The default. Every frame reads one converged estimate of the light surfaces reflect,
@@ -314,84 +317,56 @@ impl Default for DatasetConfig {
     }
 }
 
-/// Overrides of the scene's settings (`None` = keep the file's value): `evsim`'s command-line
-/// flags and a benchmark matrix's `[dataset]` tables (unknown keys rejected).
+/// The keys a matrix's or scene's `dataset = {...}` table (and [`Overrides`]) takes besides the
+/// scene file's `[dataset]` keys: the shorthands and `set`.
+pub const SHORTHANDS: [&str; 7] =
+    ["threshold", "threshold_sigma", "leak_rate_hz", "shot_noise_rate_hz", "refractory_ms", "speed", "set"];
+
+/// Changes to a scene file's settings before a dataset is planned: `evsim`'s `--set` and
+/// `--speed`, and the `dataset = {...}` tables of benchmark matrices and sweeps.
+///
+/// A key of such a table is one of three things:
+/// - a key of the scene file's `[dataset]` table ([`DatasetConfig`], documented there and in
+///   `docs/simulator.md`), held in [`Overrides::dataset`];
+/// - `set`: `KEY=VALUE` settings of any of the file's `[dataset]`, `[events]` and
+///   `[trajectory]` tables;
+/// - a shorthand (the other fields) for a change that is not one key of the file.
+///
+/// They apply in this order, a later one winning: the `[dataset]` keys (as `dataset.KEY=VALUE`
+/// settings, in key order), then `set` in its order (both on the file's TOML, before it is read
+/// and checked; [`crate::base::settings::apply_sets`]), then the shorthands on the checked
+/// settings.
+///
+/// ```toml
+/// dataset = { width = 300, exposure_ms = 20, threshold = 0.25, set = ["trajectory.radius=5.0"] }
+/// ```
 #[derive(Clone, Debug, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct Overrides {
-    /// `[dataset] exposure_ms`: shutter time of the blurry views (ms).
-    pub exposure_ms: Option<f64>,
-    /// `[dataset] fps`: rendered frames per second (Hz).
-    pub fps: Option<f64>,
-    /// Both `[events] c_pos` and `c_neg`: the contrast threshold (log intensity).
+    /// Both `[events] c_pos` and `c_neg`: the contrast threshold (log intensity, > 0).
     pub threshold: Option<f32>,
-    /// `[dataset] width` (pixels).
-    pub width: Option<u32>,
-    /// `[dataset] height` (pixels).
-    pub height: Option<u32>,
-    /// `[dataset] spp`: samples per pixel of every frame.
-    pub spp: Option<u32>,
-    /// `[dataset] spp_max`: most samples per pixel with adaptive sampling (count; 0 = off).
-    pub spp_max: Option<u32>,
-    /// `[dataset] adaptive_variance`: relative variance adaptive sampling aims at (> 0).
-    pub adaptive_variance: Option<f64>,
-    /// `[dataset] sharp_spp`: samples per pixel of the sharp renders.
-    pub sharp_spp: Option<u32>,
-    /// `[dataset] views`: number of images (count).
-    pub views: Option<u32>,
-    /// `[dataset] seed`: the renderer's seed.
-    pub seed: Option<u64>,
-    /// `[dataset] noise_pattern`: `fixed` or `per_frame`.
-    pub noise_pattern: Option<NoisePattern>,
-    /// `[dataset] clamp`: largest channel of one path contribution (radiance; 0 = off).
-    pub clamp: Option<f32>,
-    /// `[dataset] light_samples`: light samples per path vertex (count).
-    pub light_samples: Option<u32>,
-    /// `[dataset] denoise`: filter the rendered frames (true/false).
-    pub denoise: Option<bool>,
-    /// `[dataset] temporal_radius`: frames on each side reprojected into each frame (count).
-    pub temporal_radius: Option<u32>,
-    /// `[dataset] temporal_stride`: the temporal window reads every this many frames (count).
-    pub temporal_stride: Option<u32>,
-    /// `[dataset] feature_spp`: camera rays per pixel for the filters' guide buffers (count).
-    pub feature_spp: Option<u32>,
-    /// `[dataset] texture_filter`: texture footprint of camera rays (pixels; 0 = off).
-    pub texture_filter: Option<f32>,
-    /// `[dataset] radiance_cache`: paths per radiance-cache point (count; 0 = off).
-    pub radiance_cache: Option<u32>,
-    /// `[dataset] cache_vertex`: the camera-path vertex the radiance cache serves (1 or 2).
-    pub cache_vertex: Option<u32>,
-    /// `[dataset] shading`: `surface_cache` or `path_traced`.
-    pub shading: Option<Shading>,
-    /// `[dataset] surface_paths`: paths per surface-cache point (count).
-    pub surface_paths: Option<u32>,
-    /// `[dataset] surface_spacing`: the surface cache's lattice spacing (world units; 0 = auto).
-    pub surface_spacing: Option<f32>,
-    /// `[dataset] glossy_paths`: paths per triangle and pixel block on glossy surfaces (count).
-    pub glossy_paths: Option<u32>,
-    /// `[dataset] glossy_block`: pixels on a side of the blocks sharing glossy paths.
-    pub glossy_block: Option<u32>,
-    /// `[dataset] glossy_stride`: frames between glossy-grid keyframes (0 = none).
-    pub glossy_stride: Option<u32>,
-    /// `[dataset] glossy_grid_alpha`: GGX alpha from which glossy lobes read the glossy grids.
-    pub glossy_grid_alpha: Option<f32>,
-    /// `[events.noise.threshold_mismatch] sigma`: per-pixel threshold spread (log units; 0 = off).
+    /// `[events.noise.threshold_mismatch] sigma`: per-pixel threshold spread (log units; 0 =
+    /// off), keeping the file's `mode`.
     pub threshold_sigma: Option<f32>,
     /// `[events.noise] leak_rate_hz`: leak events per pixel per second (Hz).
     pub leak_rate_hz: Option<f32>,
     /// `[events.noise] shot_noise_rate_hz`: shot-noise events per pixel per second (Hz).
     pub shot_noise_rate_hz: Option<f32>,
-    /// `[events.noise.refractory]` period (ms; 0 = off).
+    /// `[events.noise.refractory]` period (ms, >= 0; 0 = off), keeping the file's `mode`.
     pub refractory_ms: Option<f64>,
     /// Camera speed factor (> 0): the trajectory's clock runs this much faster (2 = the same
     /// path in half the time, twice the blur per exposure).
     pub speed: Option<f64>,
     /// Any setting of the scene file's `[dataset]`, `[events]` or `[trajectory]` table,
     /// `KEY=VALUE` with KEY a dotted path (`dataset.glossy_block=2`,
-    /// `events.noise.leak_rate_hz=0.1`, `trajectory.radius=5.0`; VALUE a TOML value):
-    /// applied to the file before it is read and checked, before the named overrides above.
+    /// `events.noise.leak_rate_hz=0.1`, `trajectory.radius=5.0`; VALUE a TOML value, `none`
+    /// removes the key): applied to the file before it is read and checked, after
+    /// [`Overrides::dataset`].
     #[serde(default)]
     pub set: Vec<String>,
+    /// Keys of the scene file's `[dataset]` table ([`DatasetConfig`]) and their values: every
+    /// other key of a `dataset = {...}` table. Checked by [`Overrides::validate`].
+    #[serde(flatten)]
+    pub dataset: BTreeMap<String, toml::Value>,
 }
 
 impl Overrides {
@@ -400,57 +375,69 @@ impl Overrides {
         *self == Overrides::default()
     }
 
-    /// These overrides, with `over`'s set fields taking precedence.
+    /// These overrides with the scene file's `[dataset] key = value` (replacing an earlier value
+    /// of `key`), e.g. `Overrides::default().with("width", 48).with("height", 32)`.
+    pub fn with(mut self, key: &str, value: impl Into<toml::Value>) -> Overrides {
+        self.dataset.insert(key.to_string(), value.into());
+        self
+    }
+
+    /// These overrides, with `over`'s taking precedence: its shorthands and `[dataset]` keys
+    /// key by key; its `set` list after this one's (so its settings win, also over this one's
+    /// `[dataset]` keys).
     pub fn merged(&self, over: &Overrides) -> Overrides {
+        let mut dataset = self.dataset.clone();
+        dataset.extend(over.dataset.iter().map(|(k, v)| (k.clone(), v.clone())));
         Overrides {
-            exposure_ms: over.exposure_ms.or(self.exposure_ms),
-            fps: over.fps.or(self.fps),
             threshold: over.threshold.or(self.threshold),
-            width: over.width.or(self.width),
-            height: over.height.or(self.height),
-            spp: over.spp.or(self.spp),
-            spp_max: over.spp_max.or(self.spp_max),
-            adaptive_variance: over.adaptive_variance.or(self.adaptive_variance),
-            sharp_spp: over.sharp_spp.or(self.sharp_spp),
-            views: over.views.or(self.views),
-            seed: over.seed.or(self.seed),
-            noise_pattern: over.noise_pattern.or(self.noise_pattern),
-            clamp: over.clamp.or(self.clamp),
-            light_samples: over.light_samples.or(self.light_samples),
-            denoise: over.denoise.or(self.denoise),
-            temporal_radius: over.temporal_radius.or(self.temporal_radius),
-            temporal_stride: over.temporal_stride.or(self.temporal_stride),
-            feature_spp: over.feature_spp.or(self.feature_spp),
-            texture_filter: over.texture_filter.or(self.texture_filter),
-            radiance_cache: over.radiance_cache.or(self.radiance_cache),
-            cache_vertex: over.cache_vertex.or(self.cache_vertex),
-            shading: over.shading.or(self.shading),
-            surface_paths: over.surface_paths.or(self.surface_paths),
-            surface_spacing: over.surface_spacing.or(self.surface_spacing),
-            glossy_paths: over.glossy_paths.or(self.glossy_paths),
-            glossy_block: over.glossy_block.or(self.glossy_block),
-            glossy_stride: over.glossy_stride.or(self.glossy_stride),
-            glossy_grid_alpha: over.glossy_grid_alpha.or(self.glossy_grid_alpha),
             threshold_sigma: over.threshold_sigma.or(self.threshold_sigma),
             leak_rate_hz: over.leak_rate_hz.or(self.leak_rate_hz),
             shot_noise_rate_hz: over.shot_noise_rate_hz.or(self.shot_noise_rate_hz),
             refractory_ms: over.refractory_ms.or(self.refractory_ms),
             speed: over.speed.or(self.speed),
             set: self.set.iter().chain(&over.set).cloned().collect(),
+            dataset,
         }
     }
 
-    /// Reject the values that cannot be applied (NaN, negative, zero speed), naming the field;
-    /// the rest is range-checked with the scene's own settings after [`Overrides::apply`].
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+    /// The `KEY=VALUE` settings applied to the scene file's TOML, in order: the `[dataset]`
+    /// keys as `dataset.KEY=VALUE` (VALUE in TOML syntax), then `set`.
+    pub fn sets(&self) -> Vec<String> {
+        let keys = self.dataset.iter().map(|(k, v)| format!("dataset.{k}={v}"));
+        keys.chain(self.set.iter().cloned()).collect()
+    }
+
+    /// Reject what cannot be applied, naming the field: a `[dataset]` key that is not one of
+    /// [`DatasetConfig`]'s or a value of the wrong type for it, and NaN, negative or zero
+    /// shorthands that are not range-checked later. The rest is range-checked with the scene's
+    /// own settings once applied.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        for (key, value) in &self.dataset {
+            let one: toml::Table = [(key.clone(), value.clone())].into_iter().collect();
+            if let Err(e) = toml::Value::Table(one).try_into::<DatasetConfig>() {
+                return Err((
+                    format!("dataset.{key}"),
+                    format!(
+                        "{key} = {value}: {}; a `dataset` table takes the keys of a scene file's [dataset] \
+                         table (simulator::dataset::DatasetConfig: listed under --set in `evsim dataset --help`, \
+                         explained in docs/simulator.md) or one of: {}",
+                        e.message().trim_end(),
+                        SHORTHANDS.join(", ")
+                    ),
+                ));
+            }
+        }
         if let Some(ms) = self.refractory_ms {
             if !(ms >= 0.0 && ms.is_finite()) {
-                return Err(("refractory_ms", format!("{ms} must be a time >= 0 in milliseconds (0 turns it off)")));
+                return Err((
+                    "refractory_ms".into(),
+                    format!("{ms} must be a time >= 0 in milliseconds (0 turns it off)"),
+                ));
             }
         }
         if let Some(s) = self.speed {
             if !(s > 0.0 && s.is_finite()) {
-                return Err(("speed", format!("{s} must be a positive factor (1 = the scene's own speed)")));
+                return Err(("speed".into(), format!("{s} must be a positive factor (1 = the scene's own speed)")));
             }
         }
         Ok(())
@@ -464,44 +451,13 @@ impl Overrides {
         }
     }
 
-    /// Apply the overrides to the file's tables.
-    pub fn apply(&self, d: &mut DatasetConfig, ev: &mut crate::events::EventConfig) {
-        let set = |dst: &mut f64, v: Option<f64>| {
-            if let Some(v) = v {
-                *dst = v;
-            }
-        };
-        set(&mut d.exposure_ms, self.exposure_ms);
-        set(&mut d.fps, self.fps);
+    /// Apply the event shorthands (`threshold`, `threshold_sigma`, `leak_rate_hz`,
+    /// `shot_noise_rate_hz`, `refractory_ms`) to the file's `[events]` settings.
+    pub fn apply_events(&self, ev: &mut crate::events::EventConfig) {
         if let Some(c) = self.threshold {
             ev.c_pos = c;
             ev.c_neg = c;
         }
-        d.width = self.width.unwrap_or(d.width);
-        d.height = self.height.unwrap_or(d.height);
-        d.spp = self.spp.unwrap_or(d.spp);
-        d.spp_max = self.spp_max.unwrap_or(d.spp_max);
-        d.adaptive_variance = self.adaptive_variance.unwrap_or(d.adaptive_variance);
-        d.sharp_spp = self.sharp_spp.or(d.sharp_spp);
-        d.views = self.views.unwrap_or(d.views);
-        d.seed = self.seed.unwrap_or(d.seed);
-        d.noise_pattern = self.noise_pattern.unwrap_or(d.noise_pattern);
-        d.clamp = self.clamp.unwrap_or(d.clamp);
-        d.light_samples = self.light_samples.unwrap_or(d.light_samples);
-        d.denoise = self.denoise.unwrap_or(d.denoise);
-        d.temporal_radius = self.temporal_radius.unwrap_or(d.temporal_radius);
-        d.temporal_stride = self.temporal_stride.unwrap_or(d.temporal_stride);
-        d.feature_spp = self.feature_spp.unwrap_or(d.feature_spp);
-        d.texture_filter = self.texture_filter.unwrap_or(d.texture_filter);
-        d.radiance_cache = self.radiance_cache.unwrap_or(d.radiance_cache);
-        d.cache_vertex = self.cache_vertex.unwrap_or(d.cache_vertex);
-        d.shading = self.shading.unwrap_or(d.shading);
-        d.surface_paths = self.surface_paths.unwrap_or(d.surface_paths);
-        d.surface_spacing = self.surface_spacing.unwrap_or(d.surface_spacing);
-        d.glossy_paths = self.glossy_paths.unwrap_or(d.glossy_paths);
-        d.glossy_block = self.glossy_block.unwrap_or(d.glossy_block);
-        d.glossy_stride = self.glossy_stride.unwrap_or(d.glossy_stride);
-        d.glossy_grid_alpha = self.glossy_grid_alpha.unwrap_or(d.glossy_grid_alpha);
         let noise = &mut ev.noise;
         if let Some(sigma) = self.threshold_sigma {
             let mode = noise.threshold_mismatch.map(|m| m.mode).unwrap_or_default();
@@ -514,5 +470,85 @@ impl Overrides {
             let period_ns = (ms * 1e6).round() as i64;
             noise.refractory = (period_ns > 0).then_some(Refractory { period_ns, mode });
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(text: &str) -> Overrides {
+        toml::from_str(text).unwrap()
+    }
+
+    #[test]
+    fn a_dataset_table_splits_into_shorthands_set_and_dataset_keys() {
+        let o = read(
+            "width = 300\nexposure_ms = 20\nshading = \"path_traced\"\nresponse = { type = \"gamma\", gamma = 2.2 }\n\
+             threshold = 0.25\nspeed = 2\nset = [\"trajectory.radius=5.0\"]\n",
+        );
+        assert_eq!((o.threshold, o.speed), (Some(0.25), Some(2.0)));
+        assert_eq!(o.set, ["trajectory.radius=5.0"]);
+        assert_eq!(o.dataset.keys().collect::<Vec<_>>(), ["exposure_ms", "response", "shading", "width"]);
+        assert_eq!(
+            o,
+            Overrides { threshold: Some(0.25), speed: Some(2.0), ..Overrides::default() }
+                .with("width", 300)
+                .with("exposure_ms", 20)
+                .with("shading", "path_traced")
+                .with("response", read("type = \"gamma\"\ngamma = 2.2").dataset.into_iter().collect::<toml::Table>())
+                .merged(&Overrides { set: vec!["trajectory.radius=5.0".into()], ..Overrides::default() })
+        );
+        // every shorthand is a field, not a [dataset] key
+        for key in SHORTHANDS {
+            let value = if key == "set" { "[]" } else { "1" };
+            assert!(read(&format!("{key} = {value}")).dataset.is_empty(), "{key}");
+        }
+        assert!(o.validate().is_ok());
+    }
+
+    #[test]
+    fn dataset_keys_become_sets_that_give_back_their_values() {
+        let o = Overrides::default()
+            .with("exposure_ms", 0.1)
+            .with("texture_filter", 1e-7)
+            .with("glossy_grid_alpha", 0.05f32)
+            .with("views", 12)
+            .with("denoise", false)
+            .with("noise_pattern", "per_frame")
+            .merged(&Overrides { set: vec!["dataset.views=14".into()], ..Overrides::default() });
+        let sets = o.sets();
+        assert_eq!(sets.last().map(String::as_str), Some("dataset.views=14"), "set comes last: {sets:?}");
+        let mut doc = toml::Table::new();
+        let w = crate::base::settings::SetWording { flag: "--set", example: "", missing: "", create_tables: true };
+        crate::base::settings::apply_sets(&mut doc, &sets, w).unwrap();
+        let d: DatasetConfig = doc["dataset"].clone().try_into().unwrap();
+        assert_eq!((d.exposure_ms, d.texture_filter, d.glossy_grid_alpha), (0.1, 1e-7, 0.05));
+        assert_eq!((d.views, d.denoise, d.noise_pattern), (14, false, NoisePattern::PerFrame));
+    }
+
+    #[test]
+    fn merged_takes_the_scenes_keys_over_the_matrixs_key_by_key() {
+        let matrix = read("width = 300\nheight = 200\nthreshold = 0.2\nset = [\"dataset.spp=4\"]");
+        let scene = read("height = 100\nspeed = 2\nset = [\"dataset.spp=8\"]");
+        let m = matrix.merged(&scene);
+        assert_eq!((m.dataset["width"].as_integer(), m.dataset["height"].as_integer()), (Some(300), Some(100)));
+        assert_eq!((m.threshold, m.speed), (Some(0.2), Some(2.0)));
+        assert_eq!(m.set, ["dataset.spp=4", "dataset.spp=8"]);
+        assert!(Overrides::default().is_empty() && !m.is_empty());
+    }
+
+    #[test]
+    fn validate_names_an_unknown_key_or_a_wrong_value_and_where_the_keys_are() {
+        let (field, e) = read("widht = 3").validate().unwrap_err();
+        assert_eq!(field, "dataset.widht");
+        for says in ["unknown field `widht`", "`width`", "DatasetConfig", "evsim dataset --help", "docs/simulator.md"] {
+            assert!(e.contains(says), "{says}: {e}");
+        }
+        assert!(e.contains("threshold_sigma") && e.contains("set"), "{e}");
+        let (field, e) = read("width = \"wide\"").validate().unwrap_err();
+        assert!(field == "dataset.width" && e.contains("invalid type"), "{field}: {e}");
+        assert_eq!(read("speed = 0").validate().unwrap_err().0, "speed");
+        assert_eq!(read("refractory_ms = -1").validate().unwrap_err().0, "refractory_ms");
     }
 }

@@ -693,7 +693,7 @@ mod tests {
         assert!(scene.builder.triangle_count() >= 40_000, "{}", scene.builder.triangle_count());
         let dir = gltf_write::tests::temp_dir("trolley-blur");
         write_scene(&dir, &scene).unwrap();
-        let overrides = Overrides { width: Some(60), height: Some(40), ..Overrides::default() };
+        let overrides = Overrides::default().with("width", 60).with("height", 40);
         let plan = Plan::resolve(&dir.join("scene.toml"), &overrides).unwrap();
         let accel = Accel::build(&plan.scene.mesh, plan.config.bvh);
         let b = blur_stats(&plan, &accel, 2).unwrap();

@@ -16,7 +16,7 @@ fn scene_file() -> PathBuf {
 }
 
 fn plan() -> Plan {
-    let o = Overrides { width: Some(48), height: Some(32), spp: Some(1), sharp_spp: Some(1), ..Overrides::default() };
+    let o = Overrides::default().with("width", 48).with("height", 32).with("spp", 1).with("sharp_spp", 1);
     Plan::resolve(&scene_file(), &o).unwrap()
 }
 

@@ -78,7 +78,7 @@ pub struct FramesBench {
     /// First frame of the segment (ms from the trajectory's start; default: its middle).
     #[arg(long)]
     pub start_ms: Option<f64>,
-    /// Settings overrides.
+    /// Settings changes (--set, --speed).
     #[command(flatten)]
     pub overrides: crate::dataset_cmd::OverrideArgs,
 }
@@ -89,7 +89,7 @@ pub struct DatasetBench {
     /// The dataset scene.
     #[arg(default_value = "scenes/cbox/scene.toml")]
     pub scene: PathBuf,
-    /// Settings overrides.
+    /// Settings changes (--set, --speed).
     #[command(flatten)]
     pub overrides: crate::dataset_cmd::OverrideArgs,
 }

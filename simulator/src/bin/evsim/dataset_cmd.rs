@@ -7,7 +7,7 @@ use anyhow::Result;
 use clap::Args;
 
 use simulator::dataset::noise::{measure, NoiseOptions};
-use simulator::dataset::{write_dataset, NoisePattern, Overrides, Plan, RunOptions, Shading};
+use simulator::dataset::{write_dataset, DatasetConfig, NoisePattern, Overrides, Plan, RunOptions};
 
 /// Options of `evsim dataset`.
 #[derive(Args, Debug, Clone)]
@@ -17,7 +17,7 @@ pub struct DatasetArgs {
     /// The dataset folder to write (created; an interrupted run in it is resumed).
     #[arg(long)]
     pub out: PathBuf,
-    /// Settings overrides.
+    /// Settings changes (--set, --speed).
     #[command(flatten)]
     pub overrides: OverrideArgs,
     /// Keep linear frames in this folder (shared between runs: exposure and event sweeps reuse
@@ -32,165 +32,47 @@ pub struct DatasetArgs {
     pub quiet: bool,
 }
 
-/// Command-line overrides of a scene file's `[dataset]` and `[events]` settings.
+/// Command-line changes to a scene file's settings: `--set KEY=VALUE` for any setting of its
+/// `[dataset]`, `[events]` and `[trajectory]` tables, and `--speed`, which is not a key of the
+/// file. A new setting of those tables needs nothing here.
 #[derive(Args, Debug, Clone, Default)]
 pub struct OverrideArgs {
-    /// Override [dataset] exposure_ms: shutter time of the blurry views (ms).
-    #[arg(long)]
-    pub exposure_ms: Option<f64>,
-    /// Override [dataset] fps: rendered frames per second.
-    #[arg(long)]
-    pub fps: Option<f64>,
-    /// Override [events] c_pos and c_neg: the contrast threshold (log units).
-    #[arg(long)]
-    pub threshold: Option<f32>,
-    /// Override [dataset] width (pixels).
-    #[arg(long)]
-    pub width: Option<u32>,
-    /// Override [dataset] height (pixels).
-    #[arg(long)]
-    pub height: Option<u32>,
-    /// Override [dataset] spp: samples per pixel of every frame.
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Override [dataset] sharp_spp: samples per pixel of the sharp renders.
-    #[arg(long)]
-    pub sharp_spp: Option<u32>,
-    /// Override [dataset] spp_max: adaptive sampling, the most samples a noisy pixel gets
-    /// (0 = off).
-    #[arg(long)]
-    pub spp_max: Option<u32>,
-    /// Override [dataset] adaptive_variance: the relative variance adaptive sampling aims at.
-    #[arg(long)]
-    pub adaptive_variance: Option<f64>,
-    /// Override [dataset] views: number of images.
-    #[arg(long)]
-    pub views: Option<u32>,
-    /// Override [dataset] seed (renderer).
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// Override [dataset] noise_pattern.
-    #[arg(long, value_enum)]
-    pub noise_pattern: Option<NoisePattern>,
-    /// Override [dataset] clamp: largest channel of one path contribution (0 = off).
-    #[arg(long)]
-    pub clamp: Option<f32>,
-    /// Override [dataset] light_samples: light samples per path vertex.
-    #[arg(long)]
-    pub light_samples: Option<u32>,
-    /// Override [dataset] denoise: filter the rendered frames (true or false).
-    #[arg(long)]
-    pub denoise: Option<bool>,
-    /// Override [dataset] temporal_radius: frames on each side reprojected into each frame
-    /// before denoising (0 = spatial filter only).
-    #[arg(long)]
-    pub temporal_radius: Option<u32>,
-    /// Override [dataset] temporal_stride: the temporal window reads every this many frames
-    /// (1 = all).
-    #[arg(long)]
-    pub temporal_stride: Option<u32>,
-    /// Override [dataset] feature_spp: camera rays per pixel for the filters' guide buffers
-    /// (texture, edges; up to spp = spp).
-    #[arg(long)]
-    pub feature_spp: Option<u32>,
-    /// Override [dataset] texture_filter: camera rays filter textures over this many pixels
-    /// (0 = off).
-    #[arg(long)]
-    pub texture_filter: Option<f32>,
-    /// Override [dataset] radiance_cache: paths per point of the radiance cache that ends paths
-    /// at their second bounce (0 = off).
-    #[arg(long)]
-    pub radiance_cache: Option<u32>,
-    /// Override [dataset] cache_vertex: the camera-path vertex the radiance cache serves (2, or
-    /// 1: camera samples trace only shadow rays).
-    #[arg(long)]
-    pub cache_vertex: Option<u32>,
-    /// Override [dataset] shading: how frames are made (surface-cache or path-traced).
-    #[arg(long, value_enum)]
-    pub shading: Option<Shading>,
-    /// Override [dataset] surface_paths: paths per point of the surface cache.
-    #[arg(long)]
-    pub surface_paths: Option<u32>,
-    /// Override [dataset] surface_spacing: the largest cell side of the surface cache's grids (world units; 0 =
-    /// the scene's diagonal over 512).
-    #[arg(long)]
-    pub surface_spacing: Option<f32>,
-    /// Override [dataset] glossy_paths: paths per pixel and triangle on glossy surfaces.
-    #[arg(long)]
-    pub glossy_paths: Option<u32>,
-    /// Override [dataset] glossy_block: side of the pixel blocks whose glossy samples share
-    /// their paths (pixels).
-    #[arg(long)]
-    pub glossy_block: Option<u32>,
-    /// Override [dataset] glossy_stride: frames between the keyframes whose glossy grids rough
-    /// glossy lobes read (0 = none: traced paths).
-    #[arg(long)]
-    pub glossy_stride: Option<u32>,
-    /// Override [dataset] glossy_grid_alpha: GGX alpha from which glossy lobes read the
-    /// glossy grids (sharper ones trace paths in every frame).
-    #[arg(long)]
-    pub glossy_grid_alpha: Option<f32>,
-    /// Override [events.noise.threshold_mismatch] sigma: per-pixel threshold spread (0 = off).
-    #[arg(long)]
-    pub threshold_sigma: Option<f32>,
-    /// Override [events.noise] leak_rate_hz: leak events per pixel per second.
-    #[arg(long)]
-    pub leak_rate_hz: Option<f32>,
-    /// Override [events.noise] shot_noise_rate_hz: shot-noise events per pixel per second.
-    #[arg(long)]
-    pub shot_noise_rate_hz: Option<f32>,
-    /// Override [events.noise.refractory]: refractory period in ms (0 = off).
-    #[arg(long)]
-    pub refractory_ms: Option<f64>,
-    /// Camera speed factor: the trajectory's clock runs this much faster (2 = twice the blur).
+    /// Change a setting of the scene file's [dataset], [events] or [trajectory] table: KEY is a
+    /// dotted path, VALUE a TOML value (none removes the key); repeatable, applied in order,
+    /// e.g. --set dataset.width=300 --set events.c_pos=0.3 (see --help for the keys)
+    #[arg(long = "set", value_name = "KEY=VALUE", long_help = set_long_help())]
+    pub set: Vec<String>,
+    /// Camera speed factor: the trajectory's clock runs this much faster (2 = the same path in
+    /// half the time, twice the blur per exposure).
     #[arg(long)]
     pub speed: Option<f64>,
-    /// Set any setting of the scene file's [dataset], [events] or [trajectory] table, KEY=VALUE
-    /// with KEY a dotted path (e.g. `dataset.glossy_block=2`, `events.noise.leak_rate_hz=0.1`);
-    /// repeatable; applied before the flags above.
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub set: Vec<String>,
+}
+
+/// The long help of `--set`: the tables, examples, and the `[dataset]` keys read from
+/// [`DatasetConfig`] itself (so a new field is listed without touching this file).
+fn set_long_help() -> String {
+    let keys = simulator::base::settings::field_names::<DatasetConfig>().join(", ");
+    format!(
+        "Change a setting of the scene file's [dataset], [events] or [trajectory] table before it is \
+         read and checked. KEY is a dotted path into the file (table.key or table.subtable.key), \
+         VALUE a TOML value (a number, true/false, a quoted or bare string, [a, b], {{k = v}}) or \
+         `none`, which removes the key. Repeatable; applied in order, so a later one wins.\n\n\
+         Examples:\n  \
+         --set dataset.width=300 --set dataset.height=200\n  \
+         --set events.c_pos=0.3 --set events.c_neg=0.3\n  \
+         --set dataset.shading=path_traced --set dataset.sharp_spp=32\n  \
+         --set events.noise.leak_rate_hz=0.1 --set trajectory.radius=5.0\n\n\
+         [dataset] keys: {keys}.\n\
+         Their meanings and units: the `[dataset]` section of docs/simulator.md and \
+         simulator::dataset::DatasetConfig; [events]: simulator::events::EventConfig; \
+         [trajectory]: simulator::trajectory (its keys depend on its type)."
+    )
 }
 
 impl OverrideArgs {
     /// The library's overrides.
     pub fn resolve(&self) -> Overrides {
-        Overrides {
-            exposure_ms: self.exposure_ms,
-            fps: self.fps,
-            threshold: self.threshold,
-            width: self.width,
-            height: self.height,
-            spp: self.spp,
-            spp_max: self.spp_max,
-            adaptive_variance: self.adaptive_variance,
-            sharp_spp: self.sharp_spp,
-            views: self.views,
-            seed: self.seed,
-            noise_pattern: self.noise_pattern,
-            clamp: self.clamp,
-            light_samples: self.light_samples,
-            denoise: self.denoise,
-            temporal_radius: self.temporal_radius,
-            temporal_stride: self.temporal_stride,
-            feature_spp: self.feature_spp,
-            texture_filter: self.texture_filter,
-            radiance_cache: self.radiance_cache,
-            cache_vertex: self.cache_vertex,
-            shading: self.shading,
-            surface_paths: self.surface_paths,
-            surface_spacing: self.surface_spacing,
-            glossy_paths: self.glossy_paths,
-            glossy_block: self.glossy_block,
-            glossy_stride: self.glossy_stride,
-            glossy_grid_alpha: self.glossy_grid_alpha,
-            threshold_sigma: self.threshold_sigma,
-            leak_rate_hz: self.leak_rate_hz,
-            shot_noise_rate_hz: self.shot_noise_rate_hz,
-            refractory_ms: self.refractory_ms,
-            speed: self.speed,
-            set: self.set.clone(),
-        }
+        Overrides { speed: self.speed, set: self.set.clone(), ..Overrides::default() }
     }
 }
 
@@ -292,7 +174,7 @@ pub struct NoiseArgs {
     /// reference lacks in red, reference events the test lacks in blue).
     #[arg(long)]
     pub map: Option<PathBuf>,
-    /// Settings overrides.
+    /// Settings changes (--set, --speed).
     #[command(flatten)]
     pub overrides: OverrideArgs,
     /// No progress bar.
@@ -421,7 +303,7 @@ pub struct FidelityArgs {
     /// Render the references again instead of reading or keeping them.
     #[arg(long)]
     pub no_reference_cache: bool,
-    /// Settings overrides.
+    /// Settings changes (--set, --speed).
     #[command(flatten)]
     pub overrides: OverrideArgs,
     /// No progress bar.

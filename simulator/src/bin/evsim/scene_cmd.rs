@@ -36,7 +36,7 @@ pub struct InfoArgs {
     /// Print every view's blur.
     #[arg(long)]
     pub per_view: bool,
-    /// Settings overrides.
+    /// Settings changes (--set, --speed).
     #[command(flatten)]
     pub overrides: crate::dataset_cmd::OverrideArgs,
 }
@@ -52,7 +52,7 @@ pub struct PreviewArgs {
     /// Which blurry view (default: the one nearest the middle).
     #[arg(long)]
     pub view: Option<usize>,
-    /// Settings overrides (e.g. --width 300 --height 200 for a quick sheet).
+    /// Settings changes (e.g. --set dataset.width=300 --set dataset.height=200 for a quick sheet).
     #[command(flatten)]
     pub overrides: crate::dataset_cmd::OverrideArgs,
 }

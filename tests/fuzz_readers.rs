@@ -529,6 +529,7 @@ fn mutated_files_are_refused_or_read_within_their_promises_never_a_panic() {
         seconds: 0.0,
         params: (0..n).map(|i| (i as f32 * 0.37).sin()).collect(),
         adam: Adam { m: (0..n).map(|i| i as f32 * 1e-3).collect(), v: vec![1e-4; n], t: 123 },
+        occupancy: Some(vec![0xdead_beef_0123_4567, u64::MAX, 0]),
     };
     let ck_path = base.join("checkpoint.bin");
     ck.save(&layout, &ck_path).unwrap();

@@ -16,6 +16,7 @@ use trainer::config::{ImageSource, TrainConfig};
 use trainer::data::dataset::{Dataset, LoadOptions};
 use trainer::diagnose;
 use trainer::engine::model::Model;
+use trainer::engine::occupancy::OccupancyConfig;
 use trainer::eval::evaluate;
 use trainer::method::rays::response;
 use trainer::method::{Method, StepData};
@@ -221,8 +222,11 @@ fn every_preset_learns_in_a_short_run_and_scores_the_test_views() {
 #[test]
 fn a_resumed_run_repeats_the_uninterrupted_one_bit_for_bit() {
     const N: u64 = 8;
-    // Evaluations and checkpoints every 3 steps, so the log has test PSNRs on both sides of N/2.
-    let cfg = TrainConfig { eval_every: 3, checkpoint_every: 3, ..small(nerf(), N) };
+    // Evaluations and checkpoints every 3 steps, so the log has test PSNRs on both sides of N/2;
+    // the occupancy grid rebuilt every 3 steps too, so the second half starts from the saved
+    // grid (step 4) and rebuilds it (step 6).
+    let mut cfg = TrainConfig { eval_every: 3, checkpoint_every: 3, ..small(nerf(), N) };
+    cfg.model.occupancy = Some(OccupancyConfig { res: 16, every: 3, threshold: -4.0 });
     let whole = run_dir("resume-whole");
     train(&cfg, None, &whole, None);
 
@@ -232,6 +236,7 @@ fn a_resumed_run_repeats_the_uninterrupted_one_bit_for_bit() {
     let model = Model::new(&cfg.model);
     let ck = Checkpoint::load(&model.layout, &halves.checkpoint()).unwrap();
     assert_eq!(ck.step, N / 2);
+    assert!(ck.occupancy.is_some(), "the checkpoint keeps the occupancy grid");
     let second = train(&cfg, Some(ck), &halves, None);
     assert_eq!(second.first().map(|r| r.step), Some(N / 2 + 1));
 
@@ -416,7 +421,7 @@ fn truncated_and_foreign_checkpoints_are_refused_with_the_reason() {
     let good = dir.join("good.bin");
     let params = model.init(cfg.seed);
     let adam = trainer::engine::adam::Adam::new(&model.layout);
-    Checkpoint { step: 0, seconds: 0.0, params, adam }.save(&model.layout, &good).unwrap();
+    Checkpoint { step: 0, seconds: 0.0, params, adam, occupancy: None }.save(&model.layout, &good).unwrap();
     let bytes = std::fs::read(&good).unwrap();
     assert!(Checkpoint::load(&model.layout, &good).is_ok());
 
@@ -640,10 +645,13 @@ fn evtrain_trains_refuses_to_overwrite_resumes_and_evaluates() {
         "model.n_fine=16",
     ]);
     let mut rows = report.lines().map(|l| l.split_whitespace().collect::<Vec<_>>());
-    let row = rows.rfind(|r| r.len() == 12 && r[..2] == ["nerf", "nerf"]).expect(&report);
+    let row = rows.rfind(|r| r.len() == 16 && r[..2] == ["nerf", "nerf"]).expect(&report);
     assert_eq!((row[5], row[7]), ("112", "104"), "{report}");
-    let (density, alive): (f64, f64) = (row[9].parse().unwrap(), row[11].parse().unwrap());
-    assert!(density == 56.0 && alive > 0.0 && alive <= density, "{report}");
+    // Of the 56 samples a ray evaluates at most (48 + 8, the coarse ones re-used), the occupancy
+    // grid skips some; the alive ones are among the evaluated, the coloured among the alive.
+    let n = |i: usize| -> f64 { row[i].parse().unwrap() };
+    let (ended, density, alive, coloured) = (n(9), n(11), n(13), n(15));
+    assert!(ended >= 0.0 && density <= 56.0 && alive > 0.0 && alive <= density && coloured <= alive, "{report}");
     let e = fails(&["bench", "--run", out, "--preset", "nerf", "--reps", "1", "--set", "model.n_fyne=8"]);
     assert!(e.contains("n_fyne") && e.contains("model"), "{e}");
 

@@ -131,8 +131,23 @@ pub struct PathTiming {
     pub rendered_per_ray: f64,
     /// Samples whose density the field evaluated, per ray.
     pub density_per_ray: f64,
-    /// Samples that went through the whole field (colour, backward), per ray.
+    /// Samples of positive density (their density's backward), per ray.
     pub alive_per_ray: f64,
+    /// Samples through the colour MLP (forward and backward), per ray.
+    pub coloured_per_ray: f64,
+    /// Samples past the end of their ray (early ray termination), per ray.
+    pub ended_per_ray: f64,
+    /// One rebuild of the occupancy grid (ms; 0 without a grid), and the steps between rebuilds.
+    pub occupancy_ms: f64,
+    /// Steps between rebuilds of the occupancy grid (0 without a grid).
+    pub occupancy_every: u64,
+}
+
+impl PathTiming {
+    /// The median step plus the occupancy grid's rebuild spread over the steps it serves (ms).
+    pub fn per_step_ms(&self) -> f64 {
+        self.median_ms + if self.occupancy_every > 0 { self.occupancy_ms / self.occupancy_every as f64 } else { 0.0 }
+    }
 }
 
 /// A preset's step on a trained field, the dense engine against the one that skips samples.
@@ -207,13 +222,25 @@ pub fn time_family(
             }
         }
         let adam = Adam::new(method.layout());
-        let ck = Checkpoint { step: cfg.iterations / 2, seconds: 0.0, params, adam };
+        let ck = Checkpoint { step: cfg.iterations / 2, seconds: 0.0, params, adam, occupancy: None };
         Trainer::new(data, cfg, Some(ck))
     };
     let (mut dense, mut skipping) = (make(true)?, make(false)?);
     let tensors = skipping.method.layout().tensors.len();
     dense.step();
     skipping.step();
+    // The occupancy grid's rebuild, timed apart (the timed steps do not fall on its schedule).
+    let grid_ms = |t: &mut Trainer| -> (f64, u64) {
+        match t.cfg.model.occupancy.as_ref().map(|o| o.every).filter(|_| !t.cfg.model.dense) {
+            Some(every) => {
+                let t0 = Instant::now();
+                t.rebuild_occupancy();
+                (t0.elapsed().as_secs_f64() * 1e3, every)
+            }
+            None => (0.0, 0),
+        }
+    };
+    let (dense_grid, skip_grid) = (grid_ms(&mut dense), grid_ms(&mut skipping));
     let (c0, k0) = (dense.sample_counts(), skipping.sample_counts());
     let (mut td, mut tk) = (Vec::with_capacity(reps), Vec::with_capacity(reps));
     for _ in 0..reps {
@@ -223,7 +250,7 @@ pub fn time_family(
             times.push(t0.elapsed().as_secs_f64() * 1e3);
         }
     }
-    let path = |times: Vec<f64>, before: SampleCounts, after: SampleCounts| {
+    let path = |times: Vec<f64>, before: SampleCounts, after: SampleCounts, grid: (f64, u64)| {
         let rays = (after.rays - before.rays).max(1) as f64;
         PathTiming {
             median_ms: median(&times),
@@ -231,6 +258,10 @@ pub fn time_family(
             rendered_per_ray: (after.rendered - before.rendered) as f64 / rays,
             density_per_ray: (after.density - before.density) as f64 / rays,
             alive_per_ray: (after.alive - before.alive) as f64 / rays,
+            coloured_per_ray: (after.coloured - before.coloured) as f64 / rays,
+            ended_per_ray: (after.ended - before.ended) as f64 / rays,
+            occupancy_ms: grid.0,
+            occupancy_every: grid.1,
         }
     };
     Ok(FamilyTiming {
@@ -238,8 +269,8 @@ pub fn time_family(
         preset: preset.to_string(),
         from_run,
         tensors,
-        dense: path(td, c0, dense.sample_counts()),
-        skipping: path(tk, k0, skipping.sample_counts()),
+        dense: path(td, c0, dense.sample_counts(), dense_grid),
+        skipping: path(tk, k0, skipping.sample_counts(), skip_grid),
     })
 }
 

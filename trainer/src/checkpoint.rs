@@ -1,9 +1,10 @@
 //! Checkpoints: parameters, Adam moments and the step, in one binary file written atomically
 //! (temporary file + rename), so an interrupted write leaves the previous checkpoint intact.
 //! Layout (little-endian): magic `EVBLURCK`, format version u32, layout fingerprint u64, step
-//! u64, parameter count u64, then params, m and v as f32, then (format 3) a u64 checksum of
+//! u64, parameter count u64, then params, m and v as f32, then (format 4) the occupancy grid's
+//! word count u64 (0: none) and its words as u64, then (formats 3 and 4) a u64 checksum of
 //! everything before it, so a flipped or lost byte is refused instead of resuming to NaN or to
-//! other numbers (format 2, without it, still loads). Same run, same bytes: the training
+//! other numbers (formats 2, without the checksum, and 3, without the grid, still load). Same run, same bytes: the training
 //! wall time, which cannot repeat, goes to a text sidecar (`<checkpoint>.seconds`:
 //! "step seconds").
 
@@ -14,8 +15,10 @@ use crate::engine::params::Layout;
 use crate::error::TrainError;
 
 const MAGIC: &[u8; 8] = b"EVBLURCK";
-const VERSION: u32 = 3;
-/// The previous format: the same without the checksum.
+const VERSION: u32 = 4;
+/// The format before the occupancy grid.
+const VERSION_NO_GRID: u32 = 3;
+/// The format before the checksum.
 const VERSION_UNCHECKED: u32 = 2;
 const HEADER: usize = 36;
 const CHECKSUM: usize = 8;
@@ -49,6 +52,9 @@ pub struct Checkpoint {
     pub params: Vec<f32>,
     /// Optimiser state.
     pub adam: Adam,
+    /// The occupancy grid's bits ([`OccupancyGrid`](crate::engine::occupancy::OccupancyGrid)),
+    /// if the model has one.
+    pub occupancy: Option<Vec<u64>>,
 }
 
 /// A hash of tensor names and sizes: a checkpoint only loads into the layout it was saved from.
@@ -77,6 +83,11 @@ impl Checkpoint {
                 bytes.extend_from_slice(&x.to_le_bytes());
             }
         }
+        let grid = self.occupancy.as_deref().unwrap_or(&[]);
+        bytes.extend_from_slice(&(grid.len() as u64).to_le_bytes());
+        for w in grid {
+            bytes.extend_from_slice(&w.to_le_bytes());
+        }
         let sum = checksum(&bytes);
         bytes.extend_from_slice(&sum.to_le_bytes());
         let write = |p: &Path, b: &[u8]| {
@@ -101,19 +112,34 @@ impl Checkpoint {
         }
         let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
         let version = u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes"));
-        if version != VERSION && version != VERSION_UNCHECKED {
+        if !(VERSION_UNCHECKED..=VERSION).contains(&version) {
             return Err(bad(&format!(
-                "checkpoint format {version}, this build reads {VERSION_UNCHECKED} and {VERSION}"
+                "checkpoint format {version}, this build reads {VERSION_UNCHECKED} to {VERSION}"
             )));
         }
-        let tail = if version == VERSION { CHECKSUM } else { 0 };
+        let tail = if version >= VERSION_NO_GRID { CHECKSUM } else { 0 };
         if u64_at(12) != fingerprint(layout) {
             return Err(bad("saved for a different model shape than config.toml describes"));
         }
         let step = u64_at(20);
         let n = u64_at(28) as usize;
-        if n != layout.len() || bytes.len() as u64 != (HEADER + tail) as u64 + 12 * n as u64 {
-            return Err(bad(&format!("truncated: {} bytes for {} parameters", bytes.len(), layout.len())));
+        let truncated = || bad(&format!("truncated: {} bytes for {} parameters", bytes.len(), layout.len()));
+        if n != layout.len() {
+            return Err(truncated());
+        }
+        let body = HEADER + 12 * n;
+        // Format 4: the grid's word count after the moments.
+        let grid_words = if version == VERSION {
+            if bytes.len() < body + 8 {
+                return Err(truncated());
+            }
+            u64_at(body)
+        } else {
+            0
+        };
+        let grid_bytes = if version == VERSION { 8 + 8 * grid_words as u128 } else { 0 };
+        if bytes.len() as u128 != body as u128 + grid_bytes + tail as u128 {
+            return Err(truncated());
         }
         if tail > 0 {
             let body = bytes.len() - CHECKSUM;
@@ -137,7 +163,14 @@ impl Checkpoint {
                 (s == step && secs.is_finite()).then_some(secs)
             })
             .unwrap_or(0.0);
-        Ok(Checkpoint { step, seconds, params: read(0), adam: Adam { m: read(1), v: read(2), t: step } })
+        let occupancy = (grid_words > 0).then(|| {
+            let at = body + 8;
+            bytes[at..at + 8 * grid_words as usize]
+                .chunks_exact(8)
+                .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect()
+        });
+        Ok(Checkpoint { step, seconds, params: read(0), adam: Adam { m: read(1), v: read(2), t: step }, occupancy })
     }
 }
 
@@ -164,6 +197,7 @@ mod tests {
             seconds: 12.5,
             params: vec![1.0, -2.0, 3.5],
             adam: Adam { m: vec![0.1, 0.2, 0.3], v: vec![1e-3, 2e-3, 3e-3], t: 7 },
+            occupancy: Some(vec![0x0123_4567_89ab_cdef, 7]),
         };
         ck.save(&layout, &path).unwrap();
         assert_eq!(Checkpoint::load(&layout, &path).unwrap(), ck);
@@ -182,11 +216,26 @@ mod tests {
             let e = Checkpoint::load(&layout, &path).unwrap_err().to_string();
             assert!(e.contains("checksum") && e.contains("checkpoint.bin"), "byte {at}: {e}");
         }
-        // The previous format (2, no checksum) still loads.
-        let mut old = bytes[..bytes.len() - CHECKSUM].to_vec();
+        // A checkpoint without a grid.
+        let no_grid = Checkpoint { occupancy: None, ..ck.clone() };
+        no_grid.save(&layout, &path).unwrap();
+        assert_eq!(Checkpoint::load(&layout, &path).unwrap(), no_grid);
+        // The previous formats (3, no grid; 2, no checksum either) still load.
+        let body = HEADER + 12 * 3;
+        let mut v3 = bytes[..body].to_vec();
+        v3[8..12].copy_from_slice(&VERSION_NO_GRID.to_le_bytes());
+        let sum = checksum(&v3);
+        v3.extend_from_slice(&sum.to_le_bytes());
+        std::fs::write(&path, &v3).unwrap();
+        assert_eq!(Checkpoint::load(&layout, &path).unwrap(), no_grid);
+        let mut old = bytes[..body].to_vec();
         old[8..12].copy_from_slice(&VERSION_UNCHECKED.to_le_bytes());
         std::fs::write(&path, &old).unwrap();
         assert_eq!(Checkpoint::load(&layout, &path).unwrap().params, ck.params);
+        // A grid cut short is refused.
+        std::fs::write(&path, &bytes[..bytes.len() - 12]).unwrap();
+        let e = Checkpoint::load(&layout, &path).unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -185,6 +185,20 @@ impl TrainConfig {
                 ));
             }
         }
+        if !(0.0..1.0).contains(&m.skip_threshold) {
+            return Err(format!(
+                "model.skip_threshold = {}; it must be in [0, 1) (the presets use 1e-4, 0 colours every sample)",
+                m.skip_threshold
+            ));
+        }
+        if let Some(o) = &m.occupancy {
+            if !(2..=512).contains(&o.res) || o.every == 0 || !o.threshold.is_finite() {
+                return Err(format!(
+                    "model.occupancy = {{ res = {}, every = {}, threshold = {} }}; res must be in [2, 512], every >= 1 and the threshold finite (the cpu presets use 64, 50, -4; drop the table to evaluate every sample)",
+                    o.res, o.every, o.threshold
+                ));
+            }
+        }
         let non_negative = [
             ("model.density_noise", m.density_noise),
             ("model.tv_plane", m.tv_plane),

@@ -16,6 +16,7 @@ use crate::config::{BlurConfig, BlurModel, EventLossConfig, ImageSource, TrainCo
 use crate::engine::adam::AdamConfig;
 use crate::engine::field::FieldShape;
 use crate::engine::model::{ModelConfig, VolumeShape};
+use crate::engine::occupancy::OccupancyConfig;
 use crate::events::ecrf::EcrfConfig;
 use crate::events::edi::EdiConfig;
 
@@ -141,6 +142,8 @@ pub fn paper_model() -> ModelConfig {
         tv_line: 1e-3 * 5.0,
         explicit: true,
         dense: false,
+        skip_threshold: 1e-4,
+        occupancy: None,
         bounds: None,
     }
 }
@@ -166,6 +169,7 @@ pub fn cpu_model() -> ModelConfig {
         fine: None,
         n_coarse: 48,
         n_fine: 24,
+        occupancy: Some(OccupancyConfig { res: 64, every: 50, threshold: -4.0 }),
         ..paper
     }
 }

@@ -248,7 +248,10 @@ impl<'a> Trainer<'a> {
                     .into(),
             });
         }
-        let method = Method::new(&cfg, data.views.len());
+        let mut method = Method::new(&cfg, data.views.len());
+        if let Some(c) = &checkpoint {
+            method.restore_occupancy(c)?;
+        }
         let threads = if cfg.threads == 0 { rayon::current_num_threads() } else { cfg.threads };
         check_memory(&cfg, method.layout(), threads, available_memory()).map_err(TrainError::Config)?;
         let pool = rayon::ThreadPoolBuilder::new()
@@ -277,7 +280,13 @@ impl<'a> Trainer<'a> {
 
     /// The checkpoint of the current state.
     pub fn checkpoint(&self) -> Checkpoint {
-        Checkpoint { step: self.step, seconds: self.seconds, params: self.params.clone(), adam: self.adam.clone() }
+        Checkpoint {
+            step: self.step,
+            seconds: self.seconds,
+            params: self.params.clone(),
+            adam: self.adam.clone(),
+            occupancy: self.method.model.occupancy.as_ref().map(|g| g.bits.clone()),
+        }
     }
 
     /// The samples this trainer's steps have rendered and evaluated so far.
@@ -285,9 +294,19 @@ impl<'a> Trainer<'a> {
         self.engine.sample_counts()
     }
 
+    /// Rebuilds the occupancy grid (if the model has one) from the current parameters, as the
+    /// step about to run would on its schedule.
+    pub fn rebuild_occupancy(&mut self) {
+        let (model, params, seed, step) = (&mut self.method.model, &self.params, self.cfg.seed, self.step);
+        self.pool.install(|| model.rebuild_occupancy(params, seed, step));
+    }
+
     /// One iteration; returns its losses.
     pub fn step(&mut self) -> StepLosses {
         let t0 = Instant::now();
+        if self.method.model.occupancy_due(self.step) {
+            self.rebuild_occupancy();
+        }
         let (cfg, data, sd) = (&self.cfg, self.data, &self.step_data);
         let out = self.pool.install(|| {
             method::step(&mut self.engine, &self.method, &mut self.params, &mut self.adam, cfg, data, sd, self.step)

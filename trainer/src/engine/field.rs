@@ -71,6 +71,8 @@ pub struct FieldWorkspace<R> {
     pe_runs: Vec<R>,
     run_base: Vec<R>,
     d_pe_runs: Vec<R>,
+    /// The rows the colour MLP ran on (increasing indices into the rows).
+    coloured: Vec<u32>,
     /// Whether the backward differentiates every input column (see
     /// [`set_all_input_grads`](Self::set_all_input_grads)).
     all_input_grads: bool,
@@ -180,6 +182,7 @@ impl Field {
         let p = pos.len();
         self.reserve(ws, p);
         ws.rows = p;
+        ws.coloured.clear();
         let dd = self.d_density_in();
         // Volume features, then PE(x), side by side in the density input.
         let mut col = 0;
@@ -203,55 +206,89 @@ impl Field {
         }
     }
 
+    /// Drops every row of `ws` but `keep` (increasing row indices; rows `keep[j]` move to `j`),
+    /// after [`forward_density`](Self::forward_density): the colour MLP and the
+    /// [`backward`](Self::backward) then see only the kept samples. After a
+    /// [`forward_colour`](Self::forward_colour), `keep` must hold every coloured row (their
+    /// colour activations stay).
+    pub fn keep_rows<R: Real>(&self, ws: &mut FieldWorkspace<R>, keep: &[u32]) {
+        debug_assert!(keep.windows(2).all(|w| w[0] < w[1]), "keep_rows: keep is not increasing");
+        debug_assert!(keep.last().is_none_or(|&k| (k as usize) < ws.rows), "keep_rows: a row past the end");
+        if keep.len() == ws.rows {
+            return;
+        }
+        // The coloured rows' new places.
+        let mut at = 0;
+        for c in ws.coloured.iter_mut() {
+            while at < keep.len() && keep[at] < *c {
+                at += 1;
+            }
+            assert!(at < keep.len() && keep[at] == *c, "keep_rows: coloured row {c} is dropped");
+            *c = at as u32;
+        }
+        // In place: keep[j] >= j, so walking up never overwrites a row still to move.
+        let compact = |buf: &mut [R], width: usize| {
+            for (j, &k) in keep.iter().enumerate() {
+                let k = k as usize;
+                if k != j {
+                    buf.copy_within(k * width..(k + 1) * width, j * width);
+                }
+            }
+        };
+        for (v, comps) in self.volumes.iter().zip(&mut ws.comps) {
+            compact(comps, v.n_comps());
+        }
+        compact(&mut ws.x_density, self.d_density_in());
+        for (l, h) in self.density.iter().zip(&mut ws.h_density) {
+            compact(h, l.n_out);
+        }
+        ws.rows = keep.len();
+    }
+
     /// The second half of [`forward`](Self::forward), after
-    /// [`forward_density`](Self::forward_density): with `keep` (increasing row indices), first
-    /// drops every other row from `ws` (rows `keep[j]` move to `j`), so the colour MLP and the
-    /// [`backward`](Self::backward) then see only the kept samples; `dir` and `rgb` have one
-    /// entry per kept row (per row without `keep`), as `ray` (each row's ray, if given):
-    /// consecutive rows of one ray (without `ray`: any consecutive rows) with equal directions
-    /// form a run that shares one PE(d) product and one direction gradient.
+    /// [`forward_density`](Self::forward_density) (and [`keep_rows`](Self::keep_rows)): the
+    /// colour of the rows `coloured` (increasing indices into the workspace's rows; `None`:
+    /// every row). The other rows get no colour: their colour reads as zero and the
+    /// [`backward`](Self::backward) passes only their density's gradient. `dir` and `rgb` have
+    /// one entry per coloured row, as `ray` (each row's ray, if given): consecutive coloured
+    /// rows of one ray (without `ray`: any consecutive rows) with equal directions form a run
+    /// that shares one PE(d) product and one direction gradient.
     #[allow(clippy::too_many_arguments)]
     pub fn forward_colour<R: Real>(
         &self,
         params: &[R],
         ws: &mut FieldWorkspace<R>,
-        keep: Option<&[u32]>,
+        coloured: Option<&[u32]>,
         ray: Option<&[u32]>,
         dir: &[[R; 3]],
         rgb: &mut [[R; 3]],
     ) {
-        if let Some(keep) = keep {
-            debug_assert!(keep.windows(2).all(|w| w[0] < w[1]), "forward_colour: keep is not increasing");
-            if keep.len() < ws.rows {
-                // In place: keep[j] >= j, so walking up never overwrites a row still to move.
-                let compact = |buf: &mut [R], width: usize| {
-                    for (j, &k) in keep.iter().enumerate() {
-                        let k = k as usize;
-                        if k != j {
-                            buf.copy_within(k * width..(k + 1) * width, j * width);
-                        }
-                    }
-                };
-                for (v, comps) in self.volumes.iter().zip(&mut ws.comps) {
-                    compact(comps, v.n_comps());
-                }
-                compact(&mut ws.x_density, self.d_density_in());
-                for (l, h) in self.density.iter().zip(&mut ws.h_density) {
-                    compact(h, l.n_out);
-                }
-                ws.rows = keep.len();
+        ws.coloured.clear();
+        match coloured {
+            Some(rows) => {
+                debug_assert!(rows.windows(2).all(|w| w[0] < w[1]), "forward_colour: rows are not increasing");
+                debug_assert!(
+                    rows.last().is_none_or(|&k| (k as usize) < ws.rows),
+                    "forward_colour: a row past the end"
+                );
+                ws.coloured.extend_from_slice(rows);
             }
+            None => ws.coloured.extend(0..ws.rows as u32),
         }
-        let p = ws.rows;
-        assert_eq!(dir.len(), p, "forward_colour: {} directions for {p} rows", dir.len());
-        assert!(ray.is_none_or(|r| r.len() == p), "forward_colour: rays for {p} rows");
+        let p = ws.coloured.len();
+        assert_eq!(dir.len(), p, "forward_colour: {} directions for {p} coloured rows", dir.len());
+        assert!(ray.is_none_or(|r| r.len() == p), "forward_colour: rays for {p} coloured rows");
+        if p == 0 {
+            return;
+        }
         // Features (after the raw density) and PE(d) form the colour input.
         let nf = self.shape.features;
         let dc = self.d_colour_in();
         let out = ws.h_density.last().expect("density MLP has an output layer");
         let dw = encoding::width(self.shape.pe_dir);
-        for i in 0..p {
-            ws.x_colour[i * dc..i * dc + nf].copy_from_slice(&out[i * (1 + nf) + 1..(i + 1) * (1 + nf)]);
+        for (i, &k) in ws.coloured.iter().enumerate() {
+            let k = k as usize;
+            ws.x_colour[i * dc..i * dc + nf].copy_from_slice(&out[k * (1 + nf) + 1..(k + 1) * (1 + nf)]);
         }
         if ws.all_input_grads {
             for i in 0..p {
@@ -285,19 +322,22 @@ impl Field {
     }
 
     /// The features the density MLP gave sample `i` in the last forward on `ws` (what the
-    /// colour MLP reads; DP-NeRF's AWP integrates them along the ray); after a
-    /// [`forward_colour`](Self::forward_colour) with `keep`, `i` counts the kept rows.
+    /// colour MLP reads; DP-NeRF's AWP integrates them along the ray); after
+    /// [`keep_rows`](Self::keep_rows), `i` counts the kept rows.
     pub fn features<'a, R: Real>(&self, ws: &'a FieldWorkspace<R>, i: usize) -> &'a [R] {
-        let (dc, nf) = (self.d_colour_in(), self.shape.features);
-        &ws.x_colour[i * dc..i * dc + nf]
+        let nf = self.shape.features;
+        let out = ws.h_density.last().expect("density MLP has an output layer");
+        &out[i * (1 + nf) + 1..(i + 1) * (1 + nf)]
     }
 
     /// Backward of the last [`forward`](Self::forward) on `ws`: accumulates parameter gradients
-    /// into `grads`; `d_features` (p x features, optional) is a loss's direct gradient on the
-    /// [`features`](Self::features); when `d_pos` / `d_dir` are given, writes dL/dpos and
-    /// dL/ddir into them (consecutive rows with equal directions share one PE(d) product, so
-    /// such a run's summed direction gradient is written to its first row and zero to the
-    /// others, unless the workspace [asks for every input gradient](FieldWorkspace::set_all_input_grads)).
+    /// into `grads`. `pos`, `d_sigma`, `d_features` (p x features, optional: a loss's direct
+    /// gradient on the [`features`](Self::features)) and `d_pos` have one entry per row of the
+    /// workspace, `d_rgb` and `d_dir` one per coloured row of the last
+    /// [`forward_colour`](Self::forward_colour). When `d_pos` / `d_dir` are given, writes dL/dpos
+    /// and dL/ddir into them (consecutive coloured rows with equal directions share one PE(d)
+    /// product, so such a run's summed direction gradient is written to its first row and zero
+    /// to the others, unless the workspace [asks for every input gradient](FieldWorkspace::set_all_input_grads)).
     #[allow(clippy::too_many_arguments)]
     pub fn backward<R: Real>(
         &self,
@@ -322,16 +362,20 @@ impl Field {
         let all = ws.all_input_grads;
         let vol_cols: usize = self.volumes.iter().map(|v| v.n_features()).sum();
         let density_cols = if all || d_pos.is_some() { dd } else { vol_cols };
-        for i in 0..p {
+        let pc = ws.coloured.len();
+        assert_eq!(d_rgb.len(), pc, "Field::backward: {} colour gradients for {pc} coloured rows", d_rgb.len());
+        for i in 0..pc {
             ws.g_a[3 * i..3 * i + 3].copy_from_slice(&d_rgb[i]);
         }
         let dw = encoding::width(self.shape.pe_dir);
-        if all {
+        if pc == 0 {
+            // No colour: only the densities (and direct feature gradients) pass gradients.
+        } else if all {
             backward_stack(
                 &self.colour,
                 params,
                 grads,
-                p,
+                pc,
                 (&ws.x_colour, dc),
                 &ws.h_colour,
                 &mut ws.g_a,
@@ -341,7 +385,7 @@ impl Field {
             );
             // ws.g_x now holds dL/d x_colour (p x dc).
             if let Some(d_dir) = d_dir {
-                for i in 0..p {
+                for i in 0..pc {
                     let enc = &ws.x_colour[i * dc + nf..i * dc + nf + dw];
                     d_dir[i] = encoding::backward(enc, &ws.g_x[i * dc + nf..i * dc + nf + dw], self.shape.pe_dir);
                 }
@@ -357,11 +401,11 @@ impl Field {
             // g_x (p x dc, first nf columns) either way.
             if rest.is_empty() {
                 first.backward_runs(grads, x, nf, runs, h0, &mut ws.g_a, n0, &mut ws.run_base);
-                first.input_grad_cols(params, p, &ws.g_a, n0, (&mut ws.g_x[..], dc, R::zero()), 0..nf);
+                first.input_grad_cols(params, pc, &ws.g_a, n0, (&mut ws.g_x[..], dc, R::zero()), 0..nf);
             } else {
-                backward_stack(rest, params, grads, p, (h0, n0), h_rest, &mut ws.g_a, &mut ws.g_b, &mut ws.g_x, n0);
+                backward_stack(rest, params, grads, pc, (h0, n0), h_rest, &mut ws.g_a, &mut ws.g_b, &mut ws.g_x, n0);
                 first.backward_runs(grads, x, nf, runs, h0, &mut ws.g_x, n0, &mut ws.run_base);
-                first.input_grad_cols(params, p, &ws.g_x, n0, (&mut ws.g_b[..], dc, R::zero()), 0..nf);
+                first.input_grad_cols(params, pc, &ws.g_x, n0, (&mut ws.g_b[..], dc, R::zero()), 0..nf);
                 std::mem::swap(&mut ws.g_x, &mut ws.g_b);
             }
             if let Some(d_dir) = d_dir {
@@ -380,10 +424,19 @@ impl Field {
             }
         }
         // Density MLP output gradient: (d sigma, d features).
+        // The features' gradient from the colour MLP reaches the coloured rows only.
+        for i in 0..p {
+            ws.g_a[i * (1 + nf)..(i + 1) * (1 + nf)].fill(R::zero());
+        }
+        if pc > 0 {
+            for (j, &i) in ws.coloured.iter().enumerate() {
+                let (src, dst) = (&ws.g_x[j * dc..j * dc + nf], i as usize * (1 + nf) + 1);
+                ws.g_a[dst..dst + nf].copy_from_slice(src);
+            }
+        }
         for i in 0..p {
             ws.g_a[i * (1 + nf)] = d_sigma[i];
-            let (src, dst) = (&ws.g_x[i * dc..i * dc + nf], i * (1 + nf) + 1);
-            ws.g_a[dst..dst + nf].copy_from_slice(src);
+            let dst = i * (1 + nf) + 1;
             if let Some(df) = d_features {
                 for (g, d) in ws.g_a[dst..dst + nf].iter_mut().zip(&df[i * nf..(i + 1) * nf]) {
                     *g += *d;

@@ -23,6 +23,7 @@ pub mod field;
 mod field_tests;
 pub mod mlp;
 pub mod model;
+pub mod occupancy;
 pub mod parallel;
 pub mod params;
 pub mod real;

@@ -8,6 +8,7 @@
 //! importance samples (one network, two sampling passes).
 
 use super::field::{Field, FieldShape};
+use super::occupancy::{OccupancyConfig, OccupancyGrid};
 use super::params::Layout;
 use super::rng::Rng;
 use super::vm::VmVolume;
@@ -79,6 +80,21 @@ pub struct ModelConfig {
     /// the density-noise draw, slower; kept to compare against.
     #[serde(default)]
     pub dense: bool,
+    /// What a sample must weigh to be worked on (1e-4 in the presets): a ray ends before its
+    /// first sample of transmittance below it (early ray termination, as Instant-NGP's), and a
+    /// sample whose render weight is at or below it in every pass that renders it gets no
+    /// colour (TensoRF's `rayMarch_weight_thres`): it adds nothing to the pixel instead of at
+    /// most this weight times its colour, the colour MLP skips it forward and backward, and
+    /// only its density passes gradients. The gradients are exact for the rendering so
+    /// truncated. 0 works on every sample (the exact result up to rounding; what runs without
+    /// this key did). Ignored with `dense`.
+    #[serde(default)]
+    pub skip_threshold: f64,
+    /// Empty-space skipping ([`occupancy`](super::occupancy)): samples in cells of the grid
+    /// that hold no density skip the field. `None`: every sample is evaluated (what runs
+    /// without this key did). Ignored with `dense`.
+    #[serde(default)]
+    pub occupancy: Option<OccupancyConfig>,
     /// The NDC box the volumes cover; `None` in a preset means "fit it to the dataset's
     /// cameras" (`trainer::method::rays::scene_bounds`), and a run records the resolved box.
     pub bounds: Option<Aabb>,
@@ -101,6 +117,9 @@ pub struct Model {
     pub coarse: Field,
     /// The fine level (`None`: the coarse level evaluates the fine samples too).
     pub fine: Option<Field>,
+    /// The current occupancy grid (training state, rebuilt as `config.occupancy` says; `None`:
+    /// not built yet, or not configured).
+    pub occupancy: Option<OccupancyGrid>,
 }
 
 impl Model {
@@ -125,7 +144,7 @@ impl Model {
             }
             Field::new(&mut layout, "fine", reads, shape.clone())
         });
-        Model { config: config.clone(), layout, volumes, coarse, fine }
+        Model { config: config.clone(), layout, volumes, coarse, fine, occupancy: None }
     }
 
     /// The level that evaluates the fine samples.
@@ -157,6 +176,47 @@ impl Model {
         for v in &self.volumes {
             v.tv_grad(params, grads, self.config.tv_plane, self.config.tv_line);
         }
+    }
+
+    /// The box the volumes (and the occupancy grid) cover.
+    pub fn bounds(&self) -> Aabb {
+        self.config.bounds.unwrap_or(Aabb::UNIT)
+    }
+
+    /// Whether training step `step` (about to run) rebuilds the occupancy grid: on the configured
+    /// schedule, and whenever there is none yet.
+    pub fn occupancy_due(&self, step: u64) -> bool {
+        match &self.config.occupancy {
+            Some(c) if !self.config.dense => self.occupancy.is_none() || step.is_multiple_of(c.every),
+            _ => false,
+        }
+    }
+
+    /// Rebuilds the occupancy grid from `params` for step `step` (see [`occupancy_due`](Self::occupancy_due)).
+    pub fn rebuild_occupancy(&mut self, params: &[f32], seed: u64, step: u64) {
+        if let Some(c) = &self.config.occupancy {
+            self.occupancy = Some(OccupancyGrid::build(self, params, self.bounds(), c, seed, step));
+        }
+    }
+
+    /// Installs a saved grid's bits (from a checkpoint); an error says why they do not fit this
+    /// model's grid.
+    pub fn set_occupancy_bits(&mut self, bits: Option<Vec<u64>>) -> Result<(), String> {
+        let (Some(c), Some(bits)) = (&self.config.occupancy, bits) else {
+            self.occupancy = None;
+            return Ok(());
+        };
+        let dims = self.bounds().grid(c.res);
+        if bits.len() != OccupancyGrid::words(dims) {
+            return Err(format!(
+                "its occupancy grid has {} words, model.occupancy.res = {} needs {}",
+                bits.len(),
+                c.res,
+                OccupancyGrid::words(dims)
+            ));
+        }
+        self.occupancy = Some(OccupancyGrid { dims, bounds: self.bounds(), bits });
+        Ok(())
     }
 
     /// Samples per ray of the fine pass (coarse + importance).

@@ -25,6 +25,7 @@
 
 use super::field::{Field, FieldWorkspace};
 use super::model::Model;
+use super::occupancy::OccupancyGrid;
 use super::real::Real;
 use super::rng::Rng;
 use super::sampling;
@@ -40,6 +41,10 @@ pub struct RayChunk<'a, R = f32> {
     /// Unit view directions in world space.
     pub viewdirs: &'a [[R; 3]],
 }
+
+/// The raw density a sample in an empty cell of the occupancy grid reads as (not evaluated):
+/// far below zero, so that it is dead whatever its density noise.
+pub const SKIPPED: f64 = -1e9;
 
 /// A [`Pass`] sample's row code with this bit set is a row of the fine [`Evals`] (else of the
 /// coarse ones).
@@ -62,6 +67,18 @@ struct Evals<R> {
     /// The alive rows, increasing; `kidx[row]` is a row's place in `keep` (`u32::MAX`: dead).
     keep: Vec<u32>,
     kidx: Vec<u32>,
+    /// Per row: whether a pass wants its colour (its render weight is above the threshold).
+    lit: Vec<bool>,
+    /// The coloured rows (alive and lit), as places in `keep`.
+    kcol: Vec<u32>,
+    /// Whether the last evaluation was on the dense path (no row is dropped).
+    dense: bool,
+    /// The rows the field evaluated (not in an empty cell of the occupancy grid), their
+    /// positions and densities, and the alive ones' places among them.
+    cand: Vec<u32>,
+    cpos: Vec<[R; 3]>,
+    csigma: Vec<R>,
+    places: Vec<u32>,
     kpos: Vec<[R; 3]>,
     kdir: Vec<[R; 3]>,
     kray: Vec<u32>,
@@ -91,6 +108,8 @@ impl<R: Real> Evals<R> {
         self.sigma.resize(n, R::zero());
         self.rgb.resize(n, [R::zero(); 3]);
         self.kidx.resize(n, 0);
+        self.lit.clear();
+        self.lit.resize(n, false);
     }
 
     fn rows(&self) -> usize {
@@ -107,36 +126,107 @@ impl<R: Real> Evals<R> {
         }
     }
 
-    /// Runs `field` on the rows: the density of every row, then colour (and, later, the
-    /// backward) only for the alive ones: rows whose density after noise is positive, or every
-    /// row when `dense` (whose backward then also differentiates the unused input columns, as
-    /// the engine did before it skipped anything).
-    fn eval(&mut self, field: &Field, params: &[R], dense: bool, train: bool) {
+    /// Runs `field`'s density on every row and keeps the alive ones: rows whose density after
+    /// noise is positive, or every row when `dense` (whose backward then also differentiates
+    /// the unused input columns, as the engine did before it skipped anything). Colours are
+    /// zero until [`eval_colour`](Self::eval_colour).
+    /// With `grid`, the rows in its empty cells are not evaluated: their raw density reads as
+    /// [`SKIPPED`] and they are dead.
+    fn eval_density(&mut self, field: &Field, params: &[R], dense: bool, train: bool, grid: Option<&OccupancyGrid>) {
         self.ws.set_all_input_grads(dense);
-        field.forward_density(params, &mut self.ws, &self.pos, &mut self.sigma);
+        self.dense = dense;
+        // The evaluated rows (all of them without a grid).
+        self.cand.clear();
+        match grid {
+            Some(g) => {
+                self.cpos.clear();
+                for (i, p) in self.pos.iter().enumerate() {
+                    let f = |a: usize| p[a].to_f64().expect("a finite position");
+                    if g.occupied([f(0), f(1), f(2)]) {
+                        self.cand.push(i as u32);
+                        self.cpos.push(*p);
+                    } else {
+                        self.sigma[i] = R::of(SKIPPED);
+                    }
+                }
+                self.csigma.resize(self.cand.len(), R::zero());
+                field.forward_density(params, &mut self.ws, &self.cpos, &mut self.csigma);
+                for (&i, &s) in self.cand.iter().zip(&self.csigma) {
+                    self.sigma[i as usize] = s;
+                }
+            }
+            None => {
+                self.cand.extend(0..self.rows() as u32);
+                field.forward_density(params, &mut self.ws, &self.pos, &mut self.sigma);
+            }
+        }
         self.keep.clear();
-        self.kdir.clear();
-        self.kray.clear();
-        for i in 0..self.rows() {
+        self.places.clear();
+        self.kidx.fill(u32::MAX);
+        for (c, &i) in self.cand.iter().enumerate() {
+            let i = i as usize;
             let x = if train { self.sigma[i] + self.noise[i] } else { self.sigma[i] };
             if dense || x > R::zero() {
                 self.kidx[i] = self.keep.len() as u32;
                 self.keep.push(i as u32);
-                self.kdir.push(self.dir[i]);
-                self.kray.push((i / self.per_ray) as u32);
-            } else {
-                self.kidx[i] = u32::MAX;
+                self.places.push(c as u32);
             }
         }
-        self.krgb.resize(self.keep.len(), [R::zero(); 3]);
+        field.keep_rows(&mut self.ws, &self.places);
         self.rgb.fill([R::zero(); 3]);
-        if self.keep.is_empty() {
+    }
+
+    /// Runs `field`'s colour MLP on the alive rows that are [`lit`](Self::lit); the others'
+    /// colour stays zero.
+    fn eval_colour(&mut self, field: &Field, params: &[R]) {
+        self.kcol.clear();
+        self.kdir.clear();
+        self.kray.clear();
+        for (j, &k) in self.keep.iter().enumerate() {
+            let k = k as usize;
+            if self.lit[k] {
+                self.kcol.push(j as u32);
+                self.kdir.push(self.dir[k]);
+                self.kray.push((k / self.per_ray) as u32);
+            }
+        }
+        self.krgb.resize(self.kcol.len(), [R::zero(); 3]);
+        field.forward_colour(params, &mut self.ws, Some(&self.kcol), Some(&self.kray), &self.kdir, &mut self.krgb);
+        for (&j, c) in self.kcol.iter().zip(&self.krgb) {
+            self.rgb[self.keep[j as usize] as usize] = *c;
+        }
+    }
+
+    /// Drops the alive rows that pass no gradient from the workspace before a backward: rows
+    /// that are not coloured and whose density and feature gradients (`width` features per
+    /// row, 0 if none) are zero, e.g. samples past the end of every ray that renders them.
+    /// They would add exactly nothing; the density's backward skips them.
+    fn drop_silent_rows(&mut self, field: &Field, width: usize) {
+        let (mut places, mut rows, mut kcol) = (Vec::new(), Vec::new(), Vec::new());
+        let mut next_col = self.kcol.iter().peekable();
+        for (j, &k) in self.keep.iter().enumerate() {
+            let ku = k as usize;
+            let coloured = next_col.next_if(|&&c| c as usize == j).is_some();
+            let feat = width > 0 && self.d_feat[ku * width..(ku + 1) * width].iter().any(|&x| x != R::zero());
+            if coloured || feat || self.d_sigma[ku] != R::zero() {
+                if coloured {
+                    kcol.push(rows.len() as u32);
+                }
+                places.push(j as u32);
+                rows.push(k);
+            } else {
+                self.kidx[ku] = u32::MAX;
+            }
+        }
+        if rows.len() == self.keep.len() {
             return;
         }
-        field.forward_colour(params, &mut self.ws, Some(&self.keep), Some(&self.kray), &self.kdir, &mut self.krgb);
-        for (&k, c) in self.keep.iter().zip(&self.krgb) {
-            self.rgb[k as usize] = *c;
+        field.keep_rows(&mut self.ws, &places);
+        for (j, &k) in rows.iter().enumerate() {
+            self.kidx[k as usize] = j as u32;
         }
+        self.keep = rows;
+        self.kcol = kcol;
     }
 
     /// Clears the routed gradients before a backward (`width`: features per row, 0 if none).
@@ -165,6 +255,9 @@ impl<R: Real> Evals<R> {
             return;
         }
         let nf = field.shape.features;
+        if !self.dense {
+            self.drop_silent_rows(field, if with_feat { nf } else { 0 });
+        }
         self.kpos.clear();
         self.kd_sigma.clear();
         self.kd_rgb.clear();
@@ -173,10 +266,12 @@ impl<R: Real> Evals<R> {
             let k = k as usize;
             self.kpos.push(self.pos[k]);
             self.kd_sigma.push(self.d_sigma[k]);
-            self.kd_rgb.push(self.d_rgb[k]);
             if with_feat {
                 self.kd_feat.extend_from_slice(&self.d_feat[k * nf..(k + 1) * nf]);
             }
+        }
+        for &j in &self.kcol {
+            self.kd_rgb.push(self.d_rgb[self.keep[j as usize] as usize]);
         }
         let d_features = with_feat.then_some(&self.kd_feat[..]);
         let Some(out) = rays_out else {
@@ -193,9 +288,8 @@ impl<R: Real> Evals<R> {
             );
             return;
         };
-        let n = self.keep.len();
-        self.kd_pos.resize(n, [R::zero(); 3]);
-        self.kd_dir.resize(n, [R::zero(); 3]);
+        self.kd_pos.resize(self.keep.len(), [R::zero(); 3]);
+        self.kd_dir.resize(self.kcol.len(), [R::zero(); 3]);
         field.backward(
             params,
             grads,
@@ -208,14 +302,19 @@ impl<R: Real> Evals<R> {
             Some(&mut self.kd_dir[..]),
         );
         // x = o + t d: dL/do = sum dL/dx, dL/dd = sum t dL/dx; the view direction's gradient is
-        // the sum over the samples.
+        // the sum over the coloured samples.
         for (j, &k) in self.keep.iter().enumerate() {
             let k = k as usize;
             let (dp, t, g) = (self.kd_pos[j], self.t[k], &mut out[k / self.per_ray]);
             for a in 0..3 {
                 g.origin[a] += dp[a];
                 g.dir[a] += t * dp[a];
-                g.viewdir[a] += self.kd_dir[j][a];
+            }
+        }
+        for (&j, dd) in self.kcol.iter().zip(&self.kd_dir) {
+            let g = &mut out[self.keep[j as usize] as usize / self.per_ray];
+            for a in 0..3 {
+                g.viewdir[a] += dd[a];
             }
         }
     }
@@ -242,6 +341,8 @@ struct Pass<R> {
     d_rgb: Vec<[R; 3]>,
     /// dL/d|d| per ray from volume rendering (the sample spacing scales with |d|).
     d_norm: Vec<R>,
+    /// Per ray, where early ray termination ends it (`s`: it does not end early).
+    end: Vec<usize>,
 }
 
 impl<R: Real> Pass<R> {
@@ -258,21 +359,56 @@ impl<R: Real> Pass<R> {
         self.d_sigma.resize(n, R::zero());
         self.d_rgb.resize(n, [R::zero(); 3]);
         self.d_norm.resize(rays, R::zero());
+        self.end.clear();
+        self.end.resize(rays, s);
     }
 
-    /// Gathers each sample's depth, noise and field outputs from its row; with `field`, also
-    /// its features (from the field's workspace, zero for a dead row).
-    fn gather(&mut self, coarse: &Evals<R>, fine: &Evals<R>, field: Option<&Field>) {
+    /// The row of `coarse` or `fine` sample `i` comes from.
+    fn row<'e>(&self, i: usize, coarse: &'e Evals<R>, fine: &'e Evals<R>) -> (&'e Evals<R>, usize) {
+        let code = self.src[i];
+        if code & FINE_ROW != 0 {
+            (fine, (code & !FINE_ROW) as usize)
+        } else {
+            (coarse, code as usize)
+        }
+    }
+
+    /// Gathers each sample's depth, noise and raw density from its row; colours are zero until
+    /// [`gather_colour`](Self::gather_colour).
+    fn gather_density(&mut self, coarse: &Evals<R>, fine: &Evals<R>) {
+        for i in 0..self.src.len() {
+            let (ev, row) = self.row(i, coarse, fine);
+            self.t[i] = ev.t[row];
+            self.sigma[i] = ev.sigma[row];
+            self.noise[i] = ev.noise[row];
+            self.rgb[i] = [R::zero(); 3];
+        }
+    }
+
+    /// Marks the rows of the samples whose render weight is above `threshold` (every sample's
+    /// with `None`) as wanting their colour.
+    fn light(&self, threshold: Option<R>, coarse: &mut Evals<R>, fine: &mut Evals<R>) {
+        for (i, &code) in self.src.iter().enumerate() {
+            if threshold.is_some_and(|thr| self.weights[i] <= thr) {
+                continue;
+            }
+            if code & FINE_ROW != 0 {
+                fine.lit[(code & !FINE_ROW) as usize] = true;
+            } else {
+                coarse.lit[code as usize] = true;
+            }
+        }
+    }
+
+    /// Gathers each sample's colour from its row; with `field`, also its features (from the
+    /// field's workspace, zero for a dead row).
+    fn gather_colour(&mut self, coarse: &Evals<R>, fine: &Evals<R>, field: Option<&Field>) {
         let width = field.map_or(0, |f| f.shape.features);
         self.feats.clear();
         self.feats.resize(self.src.len() * width, R::zero());
-        for (i, &code) in self.src.iter().enumerate() {
-            let (ev, row) =
-                if code & FINE_ROW != 0 { (fine, (code & !FINE_ROW) as usize) } else { (coarse, code as usize) };
-            self.t[i] = ev.t[row];
-            self.sigma[i] = ev.sigma[row];
+        for i in 0..self.src.len() {
+            let (ev, row) = self.row(i, coarse, fine);
             self.rgb[i] = ev.rgb[row];
-            self.noise[i] = ev.noise[row];
             if let (Some(f), k) = (field, ev.kidx[row]) {
                 if k != u32::MAX {
                     self.feats[i * width..(i + 1) * width].copy_from_slice(f.features(&ev.ws, k as usize));
@@ -292,12 +428,29 @@ impl<R: Real> Pass<R> {
         }
     }
 
-    /// Volume-renders every ray of the pass.
+    /// Ends each ray before its first sample of transmittance below `cutoff` (early ray
+    /// termination; `None`: every ray runs to its last sample).
+    fn terminate(&mut self, chunk: &RayChunk<R>, rays: usize, train: bool, cutoff: Option<R>) {
+        for r in 0..rays {
+            self.end[r] = match cutoff {
+                Some(c) => volume::termination(&self.samples(r, norm(chunk.dirs[r]), train), c),
+                None => self.s,
+            };
+        }
+    }
+
+    /// Samples past the end of their ray.
+    fn ended(&self, rays: usize) -> u64 {
+        self.end[..rays].iter().map(|&e| (self.s - e) as u64).sum()
+    }
+
+    /// Volume-renders every ray of the pass (up to its end).
     fn render(&mut self, chunk: &RayChunk<R>, rays: usize, train: bool) {
         let mut weights = std::mem::take(&mut self.weights);
         for r in 0..rays {
-            let out = volume::render(
+            let out = volume::render_until(
                 &self.samples(r, norm(chunk.dirs[r]), train),
+                self.end[r],
                 &mut weights[r * self.s..(r + 1) * self.s],
             );
             self.out[r] = out.rgb;
@@ -321,8 +474,9 @@ impl<R: Real> Pass<R> {
         let (mut ds, mut dr) = (std::mem::take(&mut self.d_sigma), std::mem::take(&mut self.d_rgb));
         for r in 0..rays {
             let range = r * self.s..(r + 1) * self.s;
-            self.d_norm[r] = volume::render_backward(
+            self.d_norm[r] = volume::render_backward_until(
                 &self.samples(r, norm(chunk.dirs[r]), train),
+                self.end[r],
                 &RenderGrad::rgb(d_out[r]),
                 &mut ds[range.clone()],
                 dr[range].as_flattened_mut(),
@@ -422,8 +576,12 @@ pub struct SampleCounts {
     pub rendered: u64,
     /// Samples whose density was evaluated.
     pub density: u64,
-    /// Samples that were alive: their colour evaluated, and later their backward.
+    /// Samples that were alive (positive density after noise): their density's backward.
     pub alive: u64,
+    /// Alive samples whose colour a pass wanted: the colour MLP's forward and backward.
+    pub coloured: u64,
+    /// Samples past the end of their ray (early ray termination), summed over the passes.
+    pub ended: u64,
 }
 
 impl<R: Real> Renderer<R> {
@@ -446,6 +604,17 @@ impl<R: Real> Renderer<R> {
     /// The samples counted so far.
     pub fn counts(&self) -> SampleCounts {
         self.counts
+    }
+
+    /// The occupancy grid the coarse field's samples skip by (none on the dense path).
+    fn grid(model: &Model) -> Option<&OccupancyGrid> {
+        model.occupancy.as_ref().filter(|_| !model.config.dense)
+    }
+
+    /// The grid of the fine pass's field: the same when one field serves both passes (the grid
+    /// holds the coarse field's density), none for a separate fine field.
+    fn fine_grid(model: &Model) -> Option<&OccupancyGrid> {
+        Self::grid(model).filter(|_| model.fine.is_none())
     }
 
     /// Whether the fine pass re-uses the coarse pass's evaluations (one field for both
@@ -489,19 +658,24 @@ impl<R: Real> Renderer<R> {
             }
         }
         ce.place(chunk);
-        ce.eval(&model.coarse, params, cfg.dense, self.train);
+        ce.eval_density(&model.coarse, params, cfg.dense, self.train, Self::grid(model));
         for (i, s) in self.coarse.src.iter_mut().enumerate() {
             *s = i as u32;
         }
-        let feats = (!self.fine_pass).then_some(&model.coarse);
-        self.coarse.gather(&self.coarse_evals, &self.fine_evals, feats);
+        // The weights (from the densities alone) drive the importance samples and say which
+        // samples need a colour.
+        let cutoff = (!cfg.dense).then(|| R::of(cfg.skip_threshold));
+        self.coarse.gather_density(&self.coarse_evals, &self.fine_evals);
+        self.coarse.terminate(chunk, rays, self.train, cutoff);
+        self.counts.ended += self.coarse.ended(rays);
         self.coarse.render(chunk, rays, self.train);
         self.counts.rays += rays as u64;
         self.counts.rendered += (rays * nc) as u64;
-        self.counts.density += (rays * nc) as u64;
+        self.counts.density += self.coarse_evals.cand.len() as u64;
         self.counts.alive += self.coarse_evals.keep.len() as u64;
         if !self.fine_pass {
             // One pass only: the "fine" colour is the coarse one.
+            self.colour(model, params, chunk, true);
             return;
         }
         // Fine pass: importance samples from the coarse weights, merged with the coarse t. With
@@ -537,30 +711,63 @@ impl<R: Real> Renderer<R> {
             }
         }
         fe.place(chunk);
-        fe.eval(model.fine_field(), params, cfg.dense, self.train);
-        self.fine.gather(&self.coarse_evals, &self.fine_evals, Some(model.fine_field()));
+        fe.eval_density(model.fine_field(), params, cfg.dense, self.train, Self::fine_grid(model));
+        self.fine.gather_density(&self.coarse_evals, &self.fine_evals);
+        self.fine.terminate(chunk, rays, self.train, cutoff);
+        self.counts.ended += self.fine.ended(rays);
         self.fine.render(chunk, rays, self.train);
         self.counts.rendered += (rays * nf) as u64;
-        self.counts.density += (rays * per_eval) as u64;
+        self.counts.density += self.fine_evals.cand.len() as u64;
         self.counts.alive += self.fine_evals.keep.len() as u64;
+        self.colour(model, params, chunk, true);
     }
 
-    /// Re-runs the last forward with other `params` or rays but the same sample depths and
-    /// noise (sampling is not differentiated; the finite-difference checks hold it fixed).
+    /// After the densities and the weights of every pass: runs the colour MLPs on the samples
+    /// the passes want and renders the passes' colours. With `light`, a pass wants the
+    /// samples whose weight is above `model.skip_threshold` (every sample on the dense
+    /// path); without, the samples the last forward wanted (a replay).
+    fn colour(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>, light: bool) {
+        let (rays, train) = (self.rays, self.train);
+        let (ce, fe) = (&mut self.coarse_evals, &mut self.fine_evals);
+        if light {
+            let cfg = &model.config;
+            let threshold = (!cfg.dense).then(|| R::of(cfg.skip_threshold));
+            self.coarse.light(threshold, ce, fe);
+            if self.fine_pass {
+                self.fine.light(threshold, ce, fe);
+            }
+        }
+        ce.eval_colour(&model.coarse, params);
+        let feats = (!self.fine_pass).then_some(&model.coarse);
+        self.coarse.gather_colour(ce, fe, feats);
+        self.coarse.render(chunk, rays, train);
+        if light {
+            self.counts.coloured += ce.kcol.len() as u64;
+        }
+        if self.fine_pass {
+            fe.eval_colour(model.fine_field(), params);
+            self.fine.gather_colour(ce, fe, Some(model.fine_field()));
+            self.fine.render(chunk, rays, train);
+            if light {
+                self.counts.coloured += fe.kcol.len() as u64;
+            }
+        }
+    }
+
+    /// Re-runs the last forward with other `params` or rays but the same sample depths, noise
+    /// and coloured samples (sampling is not differentiated; the finite-difference checks hold
+    /// it fixed).
     pub fn replay(&mut self, model: &Model, params: &[R], chunk: &RayChunk<R>) {
-        let rays = self.rays;
         let dense = model.config.dense;
         self.coarse_evals.place(chunk);
-        self.coarse_evals.eval(&model.coarse, params, dense, self.train);
-        let feats = (!self.fine_pass).then_some(&model.coarse);
-        self.coarse.gather(&self.coarse_evals, &self.fine_evals, feats);
-        self.coarse.render(chunk, rays, self.train);
+        self.coarse_evals.eval_density(&model.coarse, params, dense, self.train, Self::grid(model));
+        self.coarse.gather_density(&self.coarse_evals, &self.fine_evals);
         if self.fine_pass {
             self.fine_evals.place(chunk);
-            self.fine_evals.eval(model.fine_field(), params, dense, self.train);
-            self.fine.gather(&self.coarse_evals, &self.fine_evals, Some(model.fine_field()));
-            self.fine.render(chunk, rays, self.train);
+            self.fine_evals.eval_density(model.fine_field(), params, dense, self.train, Self::fine_grid(model));
+            self.fine.gather_density(&self.coarse_evals, &self.fine_evals);
         }
+        self.colour(model, params, chunk, false);
     }
 
     /// Coarse colours of the last forward (linear RGB, one per ray).

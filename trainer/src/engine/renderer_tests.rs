@@ -5,6 +5,7 @@
 
 use super::field::FieldShape;
 use super::model::{Model, ModelConfig, VolumeShape};
+use super::occupancy::{OccupancyConfig, OccupancyGrid};
 use super::renderer::{RayChunk, RayGrad, Renderer};
 use super::rng::Rng;
 
@@ -35,6 +36,8 @@ fn tiny_config_with(two_levels: bool, n_fine: usize) -> ModelConfig {
         tv_line: 0.0,
         explicit: true,
         dense: false,
+        skip_threshold: 0.0,
+        occupancy: None,
         bounds: Some(super::model::Aabb { min: [-0.8, -0.7, -1.0], max: [0.9, 0.8, 1.0] }),
     }
 }
@@ -44,7 +47,18 @@ fn feature_weight(i: usize, c: usize) -> f64 {
 }
 
 fn check(cfg: ModelConfig) {
-    let model = Model::new(&cfg);
+    check_with(cfg, 0.0, None)
+}
+
+/// [`check`] with `bias` added to every raw density (a denser field ends rays sooner).
+fn check_with_density(cfg: ModelConfig, bias: f64) {
+    check_with(cfg, bias, None)
+}
+
+/// [`check`] with `bias` added to every raw density and, with `grid`, an occupancy grid of that
+/// threshold built from the parameters checked.
+fn check_with(cfg: ModelConfig, bias: f64, grid: Option<f64>) {
+    let mut model = Model::new(&cfg);
     // Larger grid values than the default init, so densities and colours vary along the rays.
     let mut params: Vec<f64> = model.init(3).iter().map(|&p| p as f64).collect();
     for v in &model.volumes {
@@ -53,6 +67,17 @@ fn check(cfg: ModelConfig) {
                 *p *= 30.0;
             }
         }
+    }
+    // The density MLP's output layer (one hidden layer in the tiny shapes): raw density first.
+    for t in model.layout.tensors.iter().filter(|t| t.name.ends_with(".density.1.b")) {
+        params[t.range.start] += bias;
+    }
+    if let Some(threshold) = grid {
+        let cfg = OccupancyConfig { res: 12, every: 1, threshold };
+        let g = OccupancyGrid::build(&model, &params, model.bounds(), &cfg, 3, 0);
+        let f = g.occupied_fraction();
+        assert!(f > 0.05 && f < 0.95, "the grid must have empty and occupied cells: {f}");
+        model.occupancy = Some(g);
     }
     let origins = [[0.1, -0.2, -1.0], [-0.4, 0.3, -1.0], [0.25, 0.05, -1.0]];
     let dirs = [[0.05, 0.02, 2.0], [-0.1, 0.04, 2.0], [0.0, -0.08, 2.0]];
@@ -65,8 +90,22 @@ fn check(cfg: ModelConfig) {
     let counts = renderer.counts();
     if model.config.dense {
         assert_eq!((counts.alive, counts.density), (counts.rendered, counts.rendered), "{counts:?}");
-    } else {
+    } else if bias == 0.0 {
         assert!(counts.alive < counts.density && counts.alive > counts.density / 4, "{counts:?}");
+    }
+    // With a grid, some samples are not evaluated.
+    let without = {
+        let bare = Model { occupancy: None, ..model.clone() };
+        let mut r = Renderer::<f64>::default();
+        r.forward(&bare, &params, &chunk, Some(&mut (0..3).map(|r| Rng::new(11, r)).collect::<Vec<_>>()));
+        r.counts()
+    };
+    assert_eq!(counts.density < without.density, grid.is_some() && !model.config.dense, "{counts:?} {without:?}");
+    // With a skip threshold, some rays end early and some alive samples get no colour.
+    if model.config.skip_threshold > 0.0 {
+        assert!(counts.ended > 0 && counts.coloured < counts.alive, "{counts:?}");
+    } else {
+        assert_eq!(counts.ended, 0, "{counts:?}");
     }
     let wc = [[0.3, -0.2, 0.5], [0.1, 0.4, -0.3], [-0.6, 0.2, 0.1]];
     let wf = [[-0.2, 0.5, 0.3], [0.4, -0.1, 0.2], [0.3, 0.3, -0.5]];
@@ -150,6 +189,24 @@ fn renderer_gradients_match_finite_differences_with_one_field_for_both_passes() 
 fn renderer_gradients_match_finite_differences_on_the_dense_path() {
     check(ModelConfig { dense: true, ..tiny_config_with(false, 6) });
     check(ModelConfig { dense: true, ..tiny_config(true) });
+}
+
+/// Early ray termination and samples without colour: the gradients are those of the rendering
+/// so truncated (the replay holds the ends and the coloured samples fixed, as sampling).
+#[test]
+fn renderer_gradients_match_finite_differences_with_a_skip_threshold() {
+    check_with_density(ModelConfig { skip_threshold: 0.05, ..tiny_config_with(false, 6) }, 2.0);
+    check_with_density(ModelConfig { skip_threshold: 0.05, ..tiny_config(true) }, 2.0);
+    check_with_density(ModelConfig { skip_threshold: 0.05, ..tiny_config(false) }, 2.0);
+}
+
+/// Empty-space skipping: the samples in empty cells are dead; the rest are differentiated as
+/// without the grid.
+#[test]
+fn renderer_gradients_match_finite_differences_with_an_occupancy_grid() {
+    check_with(tiny_config_with(false, 6), 0.0, Some(0.2));
+    check_with(tiny_config(true), 0.0, Some(0.2));
+    check_with(tiny_config(false), 0.0, Some(0.2));
 }
 
 #[test]

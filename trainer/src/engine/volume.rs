@@ -126,12 +126,37 @@ impl<R: Real> RenderGrad<'_, R> {
 /// The forward pass (module doc): writes the weights `w_i` to `weights` (length `S`) and returns
 /// the colour, opacity and depth.
 pub fn render<R: Real>(ray: &RaySamples<R>, weights: &mut [R]) -> Rendered<R> {
+    render_until(ray, ray.len(), weights)
+}
+
+/// The first sample whose transmittance `T_i` is below `cutoff` (`S` if none is): where early
+/// ray termination ends the ray.
+pub fn termination<R: Real>(ray: &RaySamples<R>, cutoff: R) -> usize {
+    let eps = R::of(1e-10);
+    let mut trans = R::one();
+    for i in 0..ray.len() {
+        if trans < cutoff {
+            return i;
+        }
+        let (_, sigma, _, delta) = ray.segment(i);
+        let alpha = R::one() - (-sigma * delta).exp();
+        trans *= R::one() - alpha + eps;
+    }
+    ray.len()
+}
+
+/// [`render`] of a ray that ends before sample `end` (early ray termination): samples `end..`
+/// get weight 0 and add nothing (the colour, opacity and depth of the first `end` samples, with
+/// their own intervals).
+pub fn render_until<R: Real>(ray: &RaySamples<R>, end: usize, weights: &mut [R]) -> Rendered<R> {
     ray.check();
     assert_eq!(weights.len(), ray.len(), "render: weights has {} slots for {} samples", weights.len(), ray.len());
+    assert!(end <= ray.len(), "render: the ray ends at {end}, past its {} samples", ray.len());
     let mut out = Rendered { rgb: [R::zero(); 3], acc: R::zero(), depth: R::zero() };
     let eps = R::of(1e-10);
     let mut trans = R::one(); // T_i
-    for (i, w) in weights.iter_mut().enumerate() {
+    weights[end..].fill(R::zero());
+    for (i, w) in weights[..end].iter_mut().enumerate() {
         let (_, sigma, _, delta) = ray.segment(i);
         // alpha_i = 1 - exp(-sigma_i delta_i), w_i = alpha_i T_i.
         let alpha = R::one() - (-sigma * delta).exp();
@@ -157,8 +182,20 @@ pub fn render_backward<R: Real>(
     d_sigma_raw: &mut [R],
     d_rgb: &mut [R],
 ) -> R {
+    render_backward_until(ray, ray.len(), grad, d_sigma_raw, d_rgb)
+}
+
+/// The backward pass of [`render_until`]: the samples `end..` get zero gradients.
+pub fn render_backward_until<R: Real>(
+    ray: &RaySamples<R>,
+    end: usize,
+    grad: &RenderGrad<R>,
+    d_sigma_raw: &mut [R],
+    d_rgb: &mut [R],
+) -> R {
     ray.check();
     let s = ray.len();
+    assert!(end <= s, "render_backward: the ray ends at {end}, past its {s} samples");
     assert_eq!(d_sigma_raw.len(), s, "render_backward: d_sigma_raw has {} slots for {s} samples", d_sigma_raw.len());
     assert_eq!(d_rgb.len(), 3 * s, "render_backward: d_rgb has {} slots for {s} samples x 3", d_rgb.len());
     if let Some(dw) = grad.d_weights {
@@ -167,8 +204,10 @@ pub fn render_backward<R: Real>(
     let eps = R::of(1e-10);
     // Back to front: U_k (the suffix sum), and G_k - U_k. Sample k's two slots of d_rgb hold
     // e_k = exp(-sigma_k delta_k) and G_k - U_k until the front-to-back sweep overwrites them.
+    d_sigma_raw[end..].fill(R::zero());
+    d_rgb[3 * end..].fill(R::zero());
     let mut u = R::zero(); // U_k
-    for k in (0..s).rev() {
+    for k in (0..end).rev() {
         let (_, sigma, _, delta) = ray.segment(k);
         let e = (-sigma * delta).exp();
         let alpha = R::one() - e;
@@ -187,7 +226,7 @@ pub fn render_backward<R: Real>(
     // Front to back: T_k, then the gradients.
     let mut trans = R::one();
     let mut d_dir_norm = R::zero();
-    for k in 0..s {
+    for k in 0..end {
         let (x, sigma, dt, delta) = ray.segment(k);
         let (e, g_minus_u) = (d_rgb[3 * k], d_rgb[3 * k + 1]);
         let alpha = R::one() - e;

@@ -74,6 +74,8 @@ impl StepBuffers {
             rendered: a.rendered + b.rendered,
             density: a.density + b.density,
             alive: a.alive + b.alive,
+            coloured: a.coloured + b.coloured,
+            ended: a.ended + b.ended,
         })
     }
 }

@@ -82,6 +82,17 @@ pub struct Method {
 }
 
 impl Method {
+    /// Installs the occupancy grid a checkpoint saved (none if it has none: the next training
+    /// step builds one).
+    pub fn restore_occupancy(&mut self, ck: &crate::checkpoint::Checkpoint) -> Result<(), crate::error::TrainError> {
+        self.model.set_occupancy_bits(ck.occupancy.clone()).map_err(|e| {
+            crate::error::TrainError::Config(format!(
+                "checkpoint of step {}: {e}; train the run again from scratch or restore its config.toml",
+                ck.step
+            ))
+        })
+    }
+
     /// The parameters of `cfg` for a dataset of `views` views.
     pub fn new(cfg: &TrainConfig, views: usize) -> Method {
         let mut model = Model::new(&cfg.model);

@@ -41,6 +41,8 @@ fn tiny_model() -> ModelConfig {
         tv_line: 0.0,
         explicit: true,
         dense: false,
+        skip_threshold: 0.0,
+        occupancy: None,
         bounds: Some(Aabb { min: [-1.2, -1.2, -1.0], max: [1.2, 1.2, 1.0] }),
     }
 }

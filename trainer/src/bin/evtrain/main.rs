@@ -348,8 +348,9 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
     let plan = RunPlan::resume(dir)?; // locked: it writes eval/ and metrics.json
     let (run, record) = (&plan.paths, &plan.record);
     let dataset = load(&record.data, &record.config, false, record.events_unit)?;
-    let method = Method::new(&record.config, dataset.views.len());
+    let mut method = Method::new(&record.config, dataset.views.len());
     let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
+    method.restore_occupancy(&ck)?;
     let scores =
         trainer::eval::evaluate(&dataset, &method.model, &ck.params, &record.config, threads, Some(&run.eval()))?;
     let json = serde_json::json!({
@@ -420,8 +421,9 @@ fn diagnose_events(
     if dataset.events.is_empty() {
         bail!("{}: the dataset has no events to diagnose (events.h5 is empty)", record.data.display());
     }
-    let method = Method::new(&record.config, dataset.views.len());
+    let mut method = Method::new(&record.config, dataset.views.len());
     let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
+    method.restore_occupancy(&ck)?;
     let reading = diagnose::EventReading::of(&record.config, &dataset);
     let drawn = diagnose::draw_pairs(&dataset.events, |t| dataset.trajectory.contains(t), pairs, seed);
     if drawn.is_empty() {
@@ -553,9 +555,10 @@ fn bench_families(dir: &Path, only: &[String], settings: BenchSettings) -> Resul
     let dense = plus(&settings.dense_set);
     println!("dense path: preset{both}{dense} + model.dense=true; skipping path: preset{both}");
     println!(
-        "{:<20} {:<16} {:>9} {:>9} {:>7}   samples per ray: rendered dense | rendered / density / alive skipping",
+        "{:<20} {:<16} {:>9} {:>9} {:>7}   samples per ray: rendered dense | rendered / ended / density / alive / coloured skipping",
         "family", "preset", "dense ms", "skip ms", "ratio"
     );
+    let mut grids = Vec::new();
     for (family, preset) in families {
         let t = trainer::bench::time_family(
             &family,
@@ -566,22 +569,36 @@ fn bench_families(dir: &Path, only: &[String], settings: BenchSettings) -> Resul
             &settings,
         )?;
         println!(
-            "{:<20} {:<16} {:>9.1} {:>9.1} {:>6.2}x   {:.0} | {:.0} / {:.1} / {:.1}{}",
+            "{:<20} {:<16} {:>9.1} {:>9.1} {:>6.2}x   {:.0} | {:.0} / {:.1} / {:.1} / {:.1} / {:.1}{}",
             t.family,
             t.preset,
-            t.dense.median_ms,
-            t.skipping.median_ms,
-            t.dense.median_ms / t.skipping.median_ms,
+            t.dense.per_step_ms(),
+            t.skipping.per_step_ms(),
+            t.dense.per_step_ms() / t.skipping.per_step_ms(),
             t.dense.rendered_per_ray,
             t.skipping.rendered_per_ray,
+            t.skipping.ended_per_ray,
             t.skipping.density_per_ray,
             t.skipping.alive_per_ray,
+            t.skipping.coloured_per_ray,
             if t.from_run < t.tensors {
                 format!("  ({} of {} tensors from the run)", t.from_run, t.tensors)
             } else {
                 String::new()
             }
         );
+        if t.skipping.occupancy_every > 0 {
+            grids.push(format!(
+                "{}: {:.1} ms median step + {:.1} ms grid rebuild / {} steps",
+                t.preset, t.skipping.median_ms, t.skipping.occupancy_ms, t.skipping.occupancy_every
+            ));
+        }
+    }
+    if !grids.is_empty() {
+        println!("skip ms = median step + the occupancy grid's rebuild spread over its steps:");
+        for g in grids {
+            println!("  {g}");
+        }
     }
     Ok(())
 }

@@ -202,31 +202,34 @@ impl<R: Real> Evals<R> {
     /// row, 0 if none) are zero, e.g. samples past the end of every ray that renders them.
     /// They would add exactly nothing; the density's backward skips them.
     fn drop_silent_rows(&mut self, field: &Field, width: usize) {
-        let (mut places, mut rows, mut kcol) = (Vec::new(), Vec::new(), Vec::new());
-        let mut next_col = self.kcol.iter().peekable();
-        for (j, &k) in self.keep.iter().enumerate() {
-            let ku = k as usize;
-            let coloured = next_col.next_if(|&&c| c as usize == j).is_some();
+        // In place: the kept rows and their coloured places move down (w <= j, wc <= ci), and
+        // `places` (free after the forward) collects the kept rows' old places.
+        self.places.clear();
+        let (mut ci, mut wc) = (0, 0);
+        for j in 0..self.keep.len() {
+            let ku = self.keep[j] as usize;
+            let coloured = ci < self.kcol.len() && self.kcol[ci] as usize == j;
+            ci += coloured as usize;
             let feat = width > 0 && self.d_feat[ku * width..(ku + 1) * width].iter().any(|&x| x != R::zero());
             if coloured || feat || self.d_sigma[ku] != R::zero() {
+                let w = self.places.len();
                 if coloured {
-                    kcol.push(rows.len() as u32);
+                    self.kcol[wc] = w as u32;
+                    wc += 1;
                 }
-                places.push(j as u32);
-                rows.push(k);
+                self.kidx[ku] = w as u32;
+                self.keep[w] = ku as u32;
+                self.places.push(j as u32);
             } else {
                 self.kidx[ku] = u32::MAX;
             }
         }
-        if rows.len() == self.keep.len() {
-            return;
+        let kept = self.places.len();
+        if kept < self.keep.len() {
+            field.keep_rows(&mut self.ws, &self.places);
+            self.keep.truncate(kept);
         }
-        field.keep_rows(&mut self.ws, &places);
-        for (j, &k) in rows.iter().enumerate() {
-            self.kidx[k as usize] = j as u32;
-        }
-        self.keep = rows;
-        self.kcol = kcol;
+        self.kcol.truncate(wc);
     }
 
     /// Clears the routed gradients before a backward (`width`: features per row, 0 if none).

@@ -194,10 +194,13 @@ fn every_preset_learns_in_a_short_run_and_scores_the_test_views() {
 
         // The test views score finite PSNR / SSIM, above the black model, the same as the log's
         // end-of-run evaluation.
-        let model = Model::new(&cfg.model);
+        let mut method = Method::new(&cfg, dataset().views.len());
+        method.restore_occupancy(&ck).unwrap();
         let eval_dir = run.eval();
         std::fs::create_dir_all(&eval_dir).unwrap();
-        let s = evaluate(dataset(), &model, &ck.params, &cfg, 2, Some(&eval_dir)).unwrap();
+        let s = evaluate(dataset(), &method, &ck.params, &cfg, 2, Some(&eval_dir)).unwrap();
+        let logged = rows.last().and_then(|r| r.psnr_test);
+        assert_eq!(logged, Some(s.mean_psnr()), "{}: the log's end-of-run evaluation", p.name);
         assert_eq!(s.views.iter().map(|v| v.view).collect::<Vec<_>>(), dataset().split.test, "{}", p.name);
         for v in &s.views {
             assert!(v.psnr.is_finite() && v.ssim.is_finite() && v.ssim <= 1.0, "{}: {v:?}", p.name);
@@ -727,7 +730,7 @@ fn every_ablation_switch_trains_with_its_modules_active() {
         assert_eq!(moved("awp.attention"), awp.is_some_and(|a| a.attention), "{sets:?}: AWP attention");
         assert_eq!(moved("coarse.vm"), cfg.model.explicit, "{sets:?}: volumes");
         // A run evaluates end to end (origin ray only).
-        let s = evaluate(data, &t.method.model, &t.params, &cfg, 2, None).unwrap();
+        let s = evaluate(data, &t.method, &t.params, &cfg, 2, None).unwrap();
         assert!(s.mean_psnr().is_finite(), "{sets:?}");
         println!(
             "{sets:?}: loss {first:.4} -> {last:.4}, event loss {:.4}, test PSNR {:.2} dB",

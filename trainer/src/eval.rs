@@ -1,6 +1,8 @@
 //! Evaluation: render the sharp test views at their poses (the origin ray, no blur model),
 //! apply the camera response, and score against the ground truth with PSNR and SSIM on whole
-//! images in [0, 1] (no cropping or alignment, as the reference evaluation).
+//! images in [0, 1] (no cropping, as the reference evaluation). A learned camera trajectory
+//! (BAD-NeRF) renders them moved as its training views nearest in time were
+//! ([`Method::test_alignment`]); every other method at the dataset's poses.
 
 use std::path::Path;
 
@@ -8,10 +10,10 @@ use rayon::prelude::*;
 
 use crate::config::TrainConfig;
 use crate::data::dataset::Dataset;
-use crate::engine::model::Model;
 use crate::engine::renderer::{RayChunk, Renderer};
 use crate::error::TrainError;
 use crate::method::rays::{prepare, response, unzip, PreparedRay};
+use crate::method::{warp, Method};
 use crate::metrics::{psnr, ssim, ImageRef};
 
 /// Scores of one test view.
@@ -46,16 +48,24 @@ impl Scores {
     }
 }
 
-/// Renders view `view` at its pose: display-referred RGB, row-major, 3 values per pixel.
-/// Rows are rendered in parallel on the current rayon pool; the result does not depend on it.
-pub fn render_view(data: &Dataset, model: &Model, params: &[f32], cfg: &TrainConfig, view: usize) -> Vec<f32> {
+/// Renders view `view` at its pose (moved by the method's [`Method::test_alignment`], if any):
+/// display-referred RGB, row-major, 3 values per pixel. Rows are rendered in parallel on the
+/// current rayon pool; the result does not depend on it.
+pub fn render_view(data: &Dataset, method: &Method, params: &[f32], cfg: &TrainConfig, view: usize) -> Vec<f32> {
     let (w, h) = (data.intrinsics.width as usize, data.intrinsics.height as usize);
     let pose = &data.views[view].pose;
+    let mid = |v: usize| 0.5 * (data.views[v].t_start_us + data.views[v].t_end_us);
+    let train: Vec<(usize, f64)> = data.split.train.iter().map(|&v| (v, mid(v))).collect();
+    let (model, align) = (&method.model, method.test_alignment(params, &train, mid(view)));
     let inv_gamma = (1.0 / cfg.response_gamma) as f32;
     let mut out = vec![0.0f32; w * h * 3];
     out.par_chunks_mut(w * 3).enumerate().for_each_init(Renderer::default, |renderer, (j, row)| {
-        let rays: Vec<PreparedRay> =
-            (0..w).map(|i| prepare(data, &data.intrinsics.ray(pose, i as u32, j as u32))).collect();
+        let rays: Vec<PreparedRay> = (0..w)
+            .map(|i| {
+                let ray = data.intrinsics.ray(pose, i as u32, j as u32);
+                prepare(data, &align.as_ref().map_or(ray, |m| warp(m, &ray)))
+            })
+            .collect();
         let per_call = (cfg.chunk_rays * 4).max(1);
         for (c, chunk) in rays.chunks(per_call).enumerate() {
             let (o, d, vd) = unzip(chunk);
@@ -75,7 +85,7 @@ pub fn render_view(data: &Dataset, model: &Model, params: &[f32], cfg: &TrainCon
 /// also writes each rendering as `NN.png` there.
 pub fn evaluate(
     data: &Dataset,
-    model: &Model,
+    method: &Method,
     params: &[f32],
     cfg: &TrainConfig,
     threads: usize,
@@ -88,7 +98,7 @@ pub fn evaluate(
     let (w, h) = (data.intrinsics.width as usize, data.intrinsics.height as usize);
     let mut scores = Scores::default();
     for &v in &data.split.test {
-        let img = pool.install(|| render_view(data, model, params, cfg, v));
+        let img = pool.install(|| render_view(data, method, params, cfg, v));
         let truth = &data.views[v].image;
         let a = ImageRef::new(w, h, 3, &img).map_err(|e| TrainError::Config(format!("render: {e}")))?;
         let b = ImageRef::new(w, h, 3, &truth.data).map_err(|e| TrainError::Config(format!("test view: {e}")))?;

@@ -344,7 +344,7 @@ impl<'a> Trainer<'a> {
             let eval_now = self.cfg.eval_every > 0 && self.step.is_multiple_of(self.cfg.eval_every);
             if eval_now || self.step == self.cfg.iterations {
                 let scores =
-                    crate::eval::evaluate(self.data, &self.method.model, &self.params, &self.cfg, self.threads, None)?;
+                    crate::eval::evaluate(self.data, &self.method, &self.params, &self.cfg, self.threads, None)?;
                 row.psnr_test = Some(scores.mean_psnr());
             }
             bar.set_message(format!("loss {loss:.4} psnr {psnr:.2}"));

@@ -139,15 +139,8 @@ impl CellRun<'_> {
 
         self.progress.cell_phase(&format!("{label} scoring"));
         let t_eval = Instant::now();
-        let views = score_views(
-            data,
-            &trainer.method.model,
-            &trainer.params,
-            &trainer.cfg,
-            self.lpips,
-            self.pool,
-            &run.eval(),
-        )?;
+        let views =
+            score_views(data, &trainer.method, &trainer.params, &trainer.cfg, self.lpips, self.pool, &run.eval())?;
         let (psnr, ssim, lpips) = means(&views);
         let metrics = CellMetrics {
             format: FORMAT,

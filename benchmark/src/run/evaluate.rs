@@ -8,8 +8,8 @@ use std::path::Path;
 
 use trainer::config::TrainConfig;
 use trainer::data::dataset::Dataset;
-use trainer::engine::model::Model;
 use trainer::eval::{render_view, write_png};
+use trainer::method::Method;
 use trainer::metrics::{psnr, ssim, ImageRef};
 
 use crate::error::BenchError;
@@ -19,7 +19,7 @@ use crate::metrics::ViewMetrics;
 /// Renders and scores every test view of `data` on `pool`, writing the renders into `out_dir`.
 pub fn score_views(
     data: &Dataset,
-    model: &Model,
+    method: &Method,
     params: &[f32],
     cfg: &TrainConfig,
     lpips: Option<&Lpips>,
@@ -39,7 +39,7 @@ pub fn score_views(
     let mut views = Vec::with_capacity(data.split.test.len());
     for &v in &data.split.test {
         let view = &data.views[v];
-        let img = pool.install(|| render_view(data, model, params, cfg, v));
+        let img = pool.install(|| render_view(data, method, params, cfg, v));
         let (a, b) = (
             ImageRef::new(w, h, 3, &img).map_err(|e| metric_err("render", e))?,
             ImageRef::new(w, h, 3, &view.image.data).map_err(|e| metric_err("test view", e))?,

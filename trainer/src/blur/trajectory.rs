@@ -84,6 +84,12 @@ impl Trajectory {
             .collect()
     }
 
+    /// Image `image`'s mid-exposure twist (xi_s + xi_e) / 2 (learned model).
+    pub fn mid_twist<R: Real>(&self, params: &[R], image: usize) -> [f64; 6] {
+        let p = &params[self.offset + 12 * image..self.offset + 12 * image + 12];
+        std::array::from_fn(|c| 0.5 * (p[c].to_f64().unwrap_or(0.0) + p[6 + c].to_f64().unwrap_or(0.0)))
+    }
+
     /// Adds dL/d xi_s and dL/d xi_e of image `image` to `grads` from dL/d of its K twists.
     pub fn backward<R: Real>(&self, grads: &mut [R], image: usize, d_twists: &[[f64; 6]]) {
         let mut d = [0.0f64; 12];

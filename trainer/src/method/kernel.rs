@@ -37,7 +37,7 @@ pub fn ray_features_backward<R: Real>(ps: &PassSamples<R>, r: usize, d: &[R], ou
 }
 
 /// `ray` moved by the world-frame rigid motion `m`.
-pub(super) fn warp(m: &Rigid, ray: &Ray) -> Ray {
+pub(crate) fn warp(m: &Rigid, ray: &Ray) -> Ray {
     Ray { origin: to_dvec(m.point(ray.origin.to_array())), direction: to_dvec(m.vector(ray.direction.to_array())) }
 }
 

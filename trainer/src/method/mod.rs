@@ -40,6 +40,7 @@ pub use step::step;
 
 use std::path::Path;
 
+pub(crate) use self::kernel::warp;
 use self::rays::scene_bounds;
 use crate::blur::awp::Awp;
 use crate::blur::dsk::Dsk;
@@ -91,6 +92,33 @@ impl Method {
                 ck.step
             ))
         })
+    }
+
+    /// The world-frame motion that takes a test view at time `t` into the frame the field was
+    /// learned in, for a learned camera trajectory (BAD-NeRF): its training views' mid-exposure
+    /// twists (xi_s + xi_e) / 2, interpolated linearly in time between the training views
+    /// (`train`: view and mid-exposure time) just before and just after `t` (the nearest one
+    /// past either end), then exp. Nothing anchors those twists to the dataset's poses: they
+    /// drift, smoothly along the trajectory, and the field with them, so a test view rendered at
+    /// its dataset pose would see a shifted scene. Only training parameters go in (no test
+    /// image). `None` for every other method: their rays are the dataset's (the rigid and DSK
+    /// kernels keep the un-moved origin ray).
+    pub fn test_alignment(&self, params: &[f32], train: &[(usize, f64)], t: f64) -> Option<crate::blur::se3::Rigid> {
+        let Some(Blur::Trajectory(tr)) = &self.blur else { return None };
+        if !tr.config.learned {
+            return None;
+        }
+        let before = train.iter().filter(|v| v.1 <= t).max_by(|a, b| a.1.total_cmp(&b.1));
+        let after = train.iter().filter(|v| v.1 >= t).min_by(|a, b| a.1.total_cmp(&b.1));
+        let xi = match (before, after) {
+            (Some(&(a, ta)), Some(&(b, tb))) if tb > ta => {
+                let (xa, xb, f) = (tr.mid_twist(params, a), tr.mid_twist(params, b), (t - ta) / (tb - ta));
+                std::array::from_fn(|c| xa[c] + f * (xb[c] - xa[c]))
+            }
+            (Some(&(a, _)), _) | (None, Some(&(a, _))) => tr.mid_twist(params, a),
+            (None, None) => return None,
+        };
+        Some(crate::blur::se3::exp(xi))
     }
 
     /// The parameters of `cfg` for a dataset of `views` views.

@@ -350,3 +350,46 @@ fn blur_loss_without_a_kernel_is_the_plain_loss_and_bayer_follows_rggb() {
     assert!((dc[0][0] - 2.0 * -0.3).abs() < 1e-12);
     assert_eq!([bayer(0.0, 0.0), bayer(1.0, 0.0), bayer(0.0, 1.0), bayer(1.0, 1.0), bayer(2.0, 4.0)], [0, 1, 1, 2, 0]);
 }
+
+#[test]
+fn a_learned_trajectory_moves_a_test_view_as_its_training_views_nearest_in_time() {
+    let build = |name: &str| (crate::presets::preset(name).unwrap().build)(crate::presets::Scale::Cpu);
+    let method = Method::new(&build("bad-nerf"), 5);
+    let Some(Blur::Trajectory(tr)) = &method.blur else { panic!("bad-nerf has no trajectory") };
+    let o = tr.offset;
+    let mut params = vec![0.0f32; method.layout().len()];
+    // Views 1, 2 and 4 train (mid-exposure times 10, 20, 40); 0 and 3 are test views, whose
+    // twists never learn and must not count.
+    let train = [(1, 10.0), (2, 20.0), (4, 40.0)];
+    assert_eq!(method.test_alignment(&params, &train, 30.0), Some(se3::exp([0.0; 6])), "zero twists: no motion");
+    for (i, p) in params[o..o + 60].iter_mut().enumerate() {
+        *p = (i as f32 * 0.37).sin() * 0.02;
+    }
+    let mid = |v: usize, c: usize| 0.5 * (params[o + 12 * v + c] as f64 + params[o + 12 * v + 6 + c] as f64);
+    let close = |got: se3::Rigid, want: se3::Rigid, what: &str| {
+        for a in 0..3 {
+            assert!((got.t[a] - want.t[a]).abs() < 1e-12, "{what}: translation {:?} against {:?}", got.t, want.t);
+            for b in 0..3 {
+                assert!(
+                    (got.r[a][b] - want.r[a][b]).abs() < 1e-12,
+                    "{what}: rotation {:?} against {:?}",
+                    got.r,
+                    want.r
+                );
+            }
+        }
+    };
+    // Between views 2 and 4, a quarter of the way: the twists interpolated, then exp.
+    let want = se3::exp(std::array::from_fn(|c| 0.75 * mid(2, c) + 0.25 * mid(4, c)));
+    close(method.test_alignment(&params, &train, 25.0).unwrap(), want, "between");
+    assert!(want.t.iter().any(|t| t.abs() > 1e-3), "the test's twists move the camera");
+    // Before the first training view and after the last: the nearest one's; on one: its own.
+    close(method.test_alignment(&params, &train, 0.0).unwrap(), se3::exp(std::array::from_fn(|c| mid(1, c))), "before");
+    close(method.test_alignment(&params, &train, 50.0).unwrap(), se3::exp(std::array::from_fn(|c| mid(4, c))), "after");
+    close(method.test_alignment(&params, &train, 20.0).unwrap(), se3::exp(std::array::from_fn(|c| mid(2, c))), "on");
+    // Every other method renders the test views at the dataset's poses.
+    for name in ["nerf", "dp-nerf", "deblur-nerf", "pdrf", "e2nerf", "ev-deblurnerf"] {
+        let m = Method::new(&build(name), 5);
+        assert_eq!(m.test_alignment(&vec![0.1; m.layout().len()], &train, 25.0), None, "{name}");
+    }
+}

@@ -351,8 +351,7 @@ fn eval(dir: &Path, threads: usize) -> Result<()> {
     let mut method = Method::new(&record.config, dataset.views.len());
     let ck = Checkpoint::load(method.layout(), &run.checkpoint())?;
     method.restore_occupancy(&ck)?;
-    let scores =
-        trainer::eval::evaluate(&dataset, &method.model, &ck.params, &record.config, threads, Some(&run.eval()))?;
+    let scores = trainer::eval::evaluate(&dataset, &method, &ck.params, &record.config, threads, Some(&run.eval()))?;
     let json = serde_json::json!({
         "preset": record.preset,
         "scale": record.scale,

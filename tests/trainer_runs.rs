@@ -192,15 +192,13 @@ fn every_preset_learns_in_a_short_run_and_scores_the_test_views() {
         assert!(ck.params == t.params && ck.adam == t.adam, "{}: the checkpoint is not the trainer's state", p.name);
         assert_eq!(log_rows(&run).len(), STEPS as usize);
 
-        // The test views score finite PSNR / SSIM, above the black model, the same as the log's
-        // end-of-run evaluation.
+        // The test views score finite PSNR / SSIM, above the black model, as the log's last evaluation.
         let mut method = Method::new(&cfg, dataset().views.len());
         method.restore_occupancy(&ck).unwrap();
         let eval_dir = run.eval();
         std::fs::create_dir_all(&eval_dir).unwrap();
         let s = evaluate(dataset(), &method, &ck.params, &cfg, 2, Some(&eval_dir)).unwrap();
-        let logged = rows.last().and_then(|r| r.psnr_test);
-        assert_eq!(logged, Some(s.mean_psnr()), "{}: the log's end-of-run evaluation", p.name);
+        assert_eq!(rows.last().and_then(|r| r.psnr_test), Some(s.mean_psnr()), "{}: the log's test PSNR", p.name);
         assert_eq!(s.views.iter().map(|v| v.view).collect::<Vec<_>>(), dataset().split.test, "{}", p.name);
         for v in &s.views {
             assert!(v.psnr.is_finite() && v.ssim.is_finite() && v.ssim <= 1.0, "{}: {v:?}", p.name);

@@ -237,33 +237,16 @@ impl<R: Real> Evals<R> {
             self.kd_rgb.push(self.d_rgb[self.keep[j as usize] as usize]);
         }
         let d_features = with_feat.then_some(&self.kd_feat[..]);
-        let Some(out) = rays_out else {
-            field.backward(
-                params,
-                grads,
-                &mut self.ws,
-                &self.kpos,
-                &self.kd_sigma,
-                &self.kd_rgb,
-                d_features,
-                None,
-                None,
-            );
-            return;
+        // The positions' and directions' gradients only when the rays want theirs.
+        let (d_pos, d_dir) = if rays_out.is_some() {
+            self.kd_pos.resize(self.keep.len(), [R::zero(); 3]);
+            self.kd_dir.resize(self.kcol.len(), [R::zero(); 3]);
+            (Some(&mut self.kd_pos[..]), Some(&mut self.kd_dir[..]))
+        } else {
+            (None, None)
         };
-        self.kd_pos.resize(self.keep.len(), [R::zero(); 3]);
-        self.kd_dir.resize(self.kcol.len(), [R::zero(); 3]);
-        field.backward(
-            params,
-            grads,
-            &mut self.ws,
-            &self.kpos,
-            &self.kd_sigma,
-            &self.kd_rgb,
-            d_features,
-            Some(&mut self.kd_pos[..]),
-            Some(&mut self.kd_dir[..]),
-        );
+        field.backward(params, grads, &mut self.ws, &self.kpos, &self.kd_sigma, &self.kd_rgb, d_features, d_pos, d_dir);
+        let Some(out) = rays_out else { return };
         // x = o + t d: dL/do = sum dL/dx, dL/dd = sum t dL/dx; the view direction's gradient is
         // the sum over the coloured samples.
         for (j, &k) in self.keep.iter().enumerate() {

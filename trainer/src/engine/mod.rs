@@ -3,7 +3,7 @@
 //! in f64.
 //!
 //! What lives where:
-//! - [`real`]: the scalar trait and its matrix product (matrixmultiply).
+//! - [`real`]: the scalar trait and its matrix product (the gemm crate).
 //! - [`params`]: the flat parameter vector and its named tensors.
 //! - [`mlp`]: dense layers; [`encoding`]: positional encoding; [`vm`]: TensoRF VM volumes + TV.
 //! - [`field`]: one field level (volumes + density and colour MLPs).

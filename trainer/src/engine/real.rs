@@ -36,7 +36,7 @@ fn fits(len: usize, m: usize, n: usize, rs: isize, cs: isize) -> bool {
 }
 
 macro_rules! impl_real {
-    ($t:ty, $f:path) => {
+    ($t:ty) => {
         impl Real for $t {
             fn gemm(
                 m: usize,
@@ -54,10 +54,34 @@ macro_rules! impl_real {
                 if m == 0 || n == 0 {
                     return;
                 }
+                // The gemm crate computes dst = alpha' dst + beta' lhs rhs, reading dst only when
+                // asked: beta = 0 must not read `c` (it may hold anything, NaN included). One
+                // thread: the callers run their chunks in parallel, and the sum order (so the
+                // bits) must not depend on the thread count.
                 // SAFETY: the asserts above keep every strided access inside the slices, and `c`
                 // is a unique borrow that aliases neither `a` nor `b`.
                 unsafe {
-                    $f(m, k, n, alpha, a.0.as_ptr(), a.1, a.2, b.0.as_ptr(), b.1, b.2, beta, c.0.as_mut_ptr(), c.1, c.2)
+                    gemm::gemm(
+                        m,
+                        n,
+                        k,
+                        c.0.as_mut_ptr(),
+                        c.2,
+                        c.1,
+                        beta != 0.0,
+                        a.0.as_ptr(),
+                        a.2,
+                        a.1,
+                        b.0.as_ptr(),
+                        b.2,
+                        b.1,
+                        beta,
+                        alpha,
+                        false,
+                        false,
+                        false,
+                        gemm::Parallelism::None,
+                    )
                 }
             }
 
@@ -68,8 +92,8 @@ macro_rules! impl_real {
     };
 }
 
-impl_real!(f32, matrixmultiply::sgemm);
-impl_real!(f64, matrixmultiply::dgemm);
+impl_real!(f32);
+impl_real!(f64);
 
 #[cfg(test)]
 mod tests {
@@ -87,6 +111,27 @@ mod tests {
             for j in 0..n {
                 let dot: f64 = (0..k).map(|l| a[i * k + l] * bt[j * k + l]).sum();
                 assert!((c[i * n + j] - (2.0 * dot + 0.5)).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn gemm_without_beta_ignores_what_c_held_and_strided_rows_match_naive() {
+        // The MLP shapes: many rows, narrow operands, row strides wider than the rows.
+        for (m, k, n) in [(300, 95, 64), (257, 64, 3), (33, 42, 16), (4, 0, 5)] {
+            let (lda, ldc) = (k + 3, n + 2);
+            let a: Vec<f32> = (0..m * lda).map(|i| ((i * 7919) % 1000) as f32 / 500.0 - 1.0).collect();
+            let b: Vec<f32> = (0..k * n).map(|i| ((i * 104_729) % 1000) as f32 / 500.0 - 1.0).collect();
+            let mut c = vec![f32::NAN; m * ldc];
+            f32::gemm(m, k, n, 1.0, (&a, lda as isize, 1), (&b, n as isize, 1), 0.0, (&mut c, ldc as isize, 1));
+            for i in 0..m {
+                for j in 0..n {
+                    let dot: f64 = (0..k).map(|l| a[i * lda + l] as f64 * b[l * n + j] as f64).sum();
+                    let got = c[i * ldc + j] as f64;
+                    assert!((got - dot).abs() <= 1e-4 * (1.0 + dot.abs()), "{m}x{k}x{n} [{i},{j}]: {got} vs {dot}");
+                }
+                // The padding between rows is not written.
+                assert!(c[i * ldc + n..(i + 1) * ldc].iter().all(|v| v.is_nan()));
             }
         }
     }

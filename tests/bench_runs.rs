@@ -116,10 +116,21 @@ fn shards_merge_into_the_unsharded_table_and_a_stopped_cell_resumes() {
     let partial: Vec<_> =
         second.iter().filter(|c| run::status(&b, c).unwrap() == CellStatus::Partial { step: 5 }).collect();
     assert_eq!(partial.len(), 1);
+    // The stopped session's wall time waits beside the checkpoint for the session that resumes.
+    let stopped_dir = b.cell_dir(partial[0]);
+    let wall_file = stopped_dir.join(run::cell::WALL_FILE);
+    let first: f64 = std::fs::read_to_string(&wall_file).unwrap().trim().parse().unwrap();
+    assert!(first > 0.0, "{first}");
+    // (Made long, so that only adding it up can reach the figure below.)
+    std::fs::write(&wall_file, format!("{}\n", first + 1000.0)).unwrap();
     // Again: the stopped cell resumes at step 5, the other trains; then shard 1/2 (the dataset
     // is reused).
     let s = run(&b, Shard { index: 2, count: 2 }, None);
     assert_eq!((s.cells, s.resumed, s.trained, s.simulated), (2, 1, 1, 0), "{s:?}");
+    // Its wall time covers both sessions: the first's record, and at least the training.
+    let m = CellMetrics::read(&stopped_dir.join("metrics.json")).unwrap();
+    assert!(m.wall_seconds > first + 1000.0 && m.wall_seconds >= m.train_seconds, "{first} then {m:?}");
+    assert!(m.wall_seconds < first + 1000.0 + 600.0, "{m:?}");
     let s = run(&b, Shard { index: 1, count: 2 }, None);
     assert_eq!((s.cells, s.trained, s.simulated), (2, 2, 0), "{s:?}");
 

@@ -110,8 +110,11 @@ pub struct CellMetrics {
     pub train_seconds: f64,
     /// Time of the final evaluation (s).
     pub eval_seconds: f64,
-    /// Wall time of the session that finished the cell, from loading the dataset to writing
-    /// this file (s).
+    /// Wall time over every session of the cell, each from loading the dataset to writing
+    /// this file or stopping (s). A resumed cell adds what its interrupted session recorded
+    /// (`wall.seconds` in the cell's folder), and at least the training time of its checkpoint
+    /// when a session was killed outright; cells scored before 2026-12-07 count only the
+    /// session that finished them.
     pub wall_seconds: f64,
     /// Worker threads of that session.
     pub threads: usize,

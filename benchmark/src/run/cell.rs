@@ -42,6 +42,24 @@ impl DatasetCache {
     }
 }
 
+/// The file in a cell's folder that carries the wall time of its earlier sessions (s) from an
+/// interrupted session to the one that resumes it.
+pub const WALL_FILE: &str = "wall.seconds";
+
+/// The wall time `dir`'s [`WALL_FILE`] records, 0 when there is none or it does not read as a
+/// time (it only adds to a figure; a missing or damaged one loses the earlier sessions' time).
+fn read_wall(dir: &Path) -> f64 {
+    let text = std::fs::read_to_string(dir.join(WALL_FILE)).unwrap_or_default();
+    text.trim().parse::<f64>().ok().filter(|s| s.is_finite() && *s >= 0.0).unwrap_or(0.0)
+}
+
+/// Writes `seconds` to `dir`'s [`WALL_FILE`] atomically.
+fn write_wall(dir: &Path, seconds: f64) -> Result<(), BenchError> {
+    let path = dir.join(WALL_FILE);
+    simulator::image_io::write_atomic(&path, format!("{seconds}\n").as_bytes())
+        .map_err(|e| BenchError::results(&path, format!("{e:#}")))
+}
+
 /// How a cell ended.
 #[derive(Debug)]
 pub enum Outcome {
@@ -118,6 +136,11 @@ impl CellRun<'_> {
             run_plan.save_record()?;
         }
         let checkpoint = run_plan.checkpoint(data.views.len())?;
+        // The wall time of the sessions before this one: what an interrupted session recorded,
+        // and at least the training time the checkpoint carries (a session killed outright
+        // records nothing).
+        let resumed_at = checkpoint.as_ref().map_or(0.0, |c| c.seconds);
+        let earlier = if checkpoint.is_some() { read_wall(&dir).max(resumed_at) } else { 0.0 };
         let (run, mut record) = (&run_plan.paths, run_plan.record.clone());
         record.config.threads = self.threads;
         let iterations = record.config.iterations;
@@ -133,6 +156,7 @@ impl CellRun<'_> {
             self.progress.move_cell_to(trainer.step);
             let stopped = self.stop.is_some_and(|s| s.load(Ordering::SeqCst)) || max_steps.is_some();
             if trainer.step < iterations && stopped {
+                write_wall(&dir, earlier + t0.elapsed().as_secs_f64())?;
                 return Ok(Outcome::Interrupted { step: trainer.step });
             }
         }
@@ -161,7 +185,7 @@ impl CellRun<'_> {
             views,
             train_seconds: trainer.seconds,
             eval_seconds: t_eval.elapsed().as_secs_f64(),
-            wall_seconds: t0.elapsed().as_secs_f64(),
+            wall_seconds: earlier + t0.elapsed().as_secs_f64(),
             threads: if self.threads == 0 { rayon::current_num_threads() } else { self.threads },
             machine: Machine::current(),
             git_commit: self.git_commit.into(),

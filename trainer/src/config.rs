@@ -168,6 +168,13 @@ impl TrainConfig {
                 return Err(format!("{name} is out of range; it must be a positive number (n_coarse >= 3, res >= 2)"));
             }
         }
+        if let Some(step) = m.coarse_step {
+            if !(step.is_finite() && step >= 0.25) {
+                return Err(format!(
+                    "model.coarse_step = {step}; it must be a number of voxels >= 0.25 (the cpu presets use 4.5), or none for the counts as given"
+                ));
+            }
+        }
         // a step holds every ray's samples in memory: a mistyped batch would abort on allocation
         for (name, v) in
             [("batch_rays", self.batch_rays), ("events.batch", self.events.as_ref().map_or(1, |e| e.batch))]

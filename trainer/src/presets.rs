@@ -137,6 +137,7 @@ pub fn paper_model() -> ModelConfig {
         fine: Some(reference_mlps(256, 128)),
         n_coarse: 64,
         n_fine: 64,
+        coarse_step: None,
         density_noise: 1.0,
         tv_plane: 1e-2 * 5.0,
         tv_line: 1e-3 * 5.0,
@@ -159,6 +160,11 @@ pub fn paper_model() -> ModelConfig {
 ///   instead of 48 make a step about 30% faster at the same test PSNR (8000 steps on factory:
 ///   nerf-sharp 30.09 against 30.13 dB, ev-deblurnerf 28.10 against 28.13 and within 0.12 dB
 ///   at every evaluation; `benchmark/results/2026-12-05-fine-samples.md`);
+/// - more samples where the rays are longer (`coarse_step` 4.5 voxels): factory's longest ray
+///   crosses 212 voxels of the coarse volume, which 48 samples step through 4.4 at a time;
+///   trolley's camera sweeps far sideways, its rays cross up to 415, and it gets 93 + 47
+///   (nerf-sharp at 2000 steps: 96 + 48 samples 24.35 dB against 23.20 at 48 + 24; factory
+///   keeps 48 + 24; `benchmark/results/2026-12-07-samples-per-voxel.md`);
 /// - density noise kept (1.0): without it the test PSNR at 1000 steps was 0.7 dB lower;
 /// - everything else as the reference.
 pub fn cpu_model() -> ModelConfig {
@@ -169,6 +175,7 @@ pub fn cpu_model() -> ModelConfig {
         fine: None,
         n_coarse: 48,
         n_fine: 24,
+        coarse_step: Some(4.5),
         occupancy: Some(OccupancyConfig { res: 64, every: 50, threshold: -4.0 }),
         ..paper
     }

@@ -65,6 +65,12 @@ pub struct ModelConfig {
     pub n_coarse: usize,
     /// Importance samples per ray added for the fine pass (reference: 64).
     pub n_fine: usize,
+    /// Longest stratified step, in voxels of the coarse volume, along the dataset's longest
+    /// camera ray: when set, a run raises `n_coarse` until that ray gets a sample at least
+    /// this often, and `n_fine` in proportion (`trainer::method::rays::sample_counts`), and
+    /// records the counts it used. `None`: the counts as given (the reference).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coarse_step: Option<f64>,
     /// Standard deviation of the density noise in training (reference: 1.0).
     pub density_noise: f64,
     /// TV weight on the planes (reference: 1e-2 x 5).

@@ -31,6 +31,7 @@ fn tiny_config_with(two_levels: bool, n_fine: usize) -> ModelConfig {
         fine: two_levels.then(|| shape(5, 3)),
         n_coarse: 7,
         n_fine,
+        coarse_step: None,
         density_noise: 0.3,
         tv_plane: 0.0,
         tv_line: 0.0,

@@ -41,7 +41,7 @@ pub use step::step;
 use std::path::Path;
 
 pub(crate) use self::kernel::warp;
-use self::rays::scene_bounds;
+use self::rays::{sample_counts, scene_bounds};
 use crate::blur::awp::Awp;
 use crate::blur::dsk::Dsk;
 use crate::blur::rigid::RigidKernel;
@@ -170,12 +170,13 @@ impl Method {
     }
 }
 
-/// Fills in what a configuration leaves to the dataset: the volume box (fitted to the cameras)
-/// and the event model (threshold, log offset, luma from `dataset.toml`, else the reference's).
+/// Fills in what a configuration leaves to the dataset: the volume box (fitted to the cameras),
+/// the samples per ray (with `model.coarse_step`, see [`sample_counts`]) and the event model
+/// (threshold, log offset, luma from `dataset.toml`, else the reference's). Resolving twice
+/// changes nothing.
 pub fn resolve(cfg: &mut TrainConfig, data: &Dataset) {
-    if cfg.model.bounds.is_none() {
-        cfg.model.bounds = Some(scene_bounds(data));
-    }
+    let bounds = *cfg.model.bounds.get_or_insert_with(|| scene_bounds(data));
+    (cfg.model.n_coarse, cfg.model.n_fine) = sample_counts(data, &cfg.model, &bounds);
     let Some(ev) = cfg.events.as_mut() else { return };
     let model = event_model(data);
     if ev.threshold.is_none() {

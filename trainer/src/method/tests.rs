@@ -36,6 +36,7 @@ fn tiny_model() -> ModelConfig {
         fine: None,
         n_coarse: 7,
         n_fine: 5,
+        coarse_step: None,
         density_noise: 0.3,
         tv_plane: 0.0,
         tv_line: 0.0,
@@ -391,5 +392,44 @@ fn a_learned_trajectory_moves_a_test_view_as_its_training_views_nearest_in_time(
     for name in ["nerf", "dp-nerf", "deblur-nerf", "pdrf", "e2nerf", "ev-deblurnerf"] {
         let m = Method::new(&build(name), 5);
         assert_eq!(m.test_alignment(&vec![0.1; m.layout().len()], &train, 25.0), None, "{name}");
+    }
+}
+
+/// A camera at (x0, 0, 0) looking down -z has NDC rays of direction (a_x x0 / n, 0, 2) for
+/// every pixel (n the near plane, a_x = -f / (W / 2)): the farther it sits to the side, the
+/// more voxels its rays cross, and `coarse_step` raises the counts to match.
+#[test]
+fn sample_counts_follow_the_longest_ray_in_voxels() {
+    let at = |x0: f64| Pose { rotation: DQuat::IDENTITY, position: DVec3::new(x0, 0.0, 0.0) };
+    let bounds = Aabb { min: [-4.0, -1.0, -1.0], max: [4.0, 1.0, 1.0] };
+    let coarse_volume = VolumeShape { res: 40, comps: [2, 2, 1], features: 3 };
+    let model = ModelConfig { coarse_step: Some(2.0), n_coarse: 7, n_fine: 5, coarse_volume, ..tiny_model() };
+    let g = bounds.grid(model.coarse_volume.res);
+    let voxel: Vec<f64> = (0..3).map(|a| (bounds.max[a] - bounds.min[a]) / (g[a] - 1) as f64).collect();
+    let ax = -K.focal / (0.5 * K.width as f64);
+    let expect = |x0: f64| {
+        let len = ((ax * x0 / NDC_NEAR / voxel[0]).powi(2) + (2.0 / voxel[2]).powi(2)).sqrt();
+        (len / 2.0).ceil() as usize
+    };
+    // the widest camera decides; the count and the importance samples grow in proportion
+    let rays = rays::border_rays(&K, &[at(0.3), at(-1.5), at(0.0)]);
+    let n = expect(1.5);
+    assert!(n > 7, "the test needs a count above the configured one, got {n}");
+    assert_eq!(rays::samples_for(&rays, &model, &bounds), (n, (5.0 * n as f64 / 7.0).round() as usize));
+    // a count the rays do not need is kept; without coarse_step the counts are as given
+    let near = rays::border_rays(&K, &[at(0.0)]);
+    assert_eq!(expect(0.0), (2.0 / voxel[2] / 2.0).ceil() as usize);
+    let wide = ModelConfig { n_coarse: 40, n_fine: 9, ..model.clone() };
+    assert!(expect(0.0) < 40);
+    assert_eq!(rays::samples_for(&near, &wide, &bounds), (40, 9));
+    assert_eq!(rays::samples_for(&rays, &ModelConfig { coarse_step: None, ..model.clone() }, &bounds), (7, 5));
+    // resolving twice changes nothing: the raised counts already sample finely enough
+    let raised = ModelConfig { n_coarse: n, n_fine: (5.0 * n as f64 / 7.0).round() as usize, ..model };
+    assert_eq!(rays::samples_for(&rays, &raised, &bounds), (raised.n_coarse, raised.n_fine));
+    // a step that is not a number, or so fine it would ask for thousands of samples, is refused
+    for bad in [f64::NAN, -1.0, 0.1] {
+        let mut cfg = crate::presets::nerf(crate::presets::Scale::Cpu);
+        cfg.model.coarse_step = Some(bad);
+        assert!(cfg.validate().unwrap_err().contains("model.coarse_step"), "{bad}");
     }
 }

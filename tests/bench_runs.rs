@@ -17,7 +17,7 @@ use std::sync::OnceLock;
 use std::time::SystemTime;
 
 use benchmark::matrix::{MatrixPlan, Shard};
-use benchmark::metrics::CellMetrics;
+use benchmark::metrics::{CellMetrics, Session};
 use benchmark::run::{self, CellStatus, RunOptions, RunSummary};
 use benchmark::table::{self, format, Form};
 use evblur_tests::{copy_dir, temp_dir};
@@ -123,6 +123,12 @@ fn shards_merge_into_the_unsharded_table_and_a_stopped_cell_resumes() {
     assert!(first > 0.0, "{first}");
     // (Made long, so that only adding it up can reach the figure below.)
     std::fs::write(&wall_file, format!("{}\n", first + 1000.0)).unwrap();
+    // So is the commit of the binary that trained the first 5 steps (here claimed to be another).
+    let sessions_file = stopped_dir.join(run::cell::SESSIONS_FILE);
+    let recorded: Vec<Session> = serde_json::from_str(&std::fs::read_to_string(&sessions_file).unwrap()).unwrap();
+    let commit = benchmark::metrics::git_commit();
+    assert_eq!(recorded, [Session { from: 0, to: 5, git_commit: commit.into() }]);
+    std::fs::write(&sessions_file, r#"[{"from": 0, "to": 5, "git_commit": "0123abc"}]"#).unwrap();
     // Again: the stopped cell resumes at step 5, the other trains; then shard 1/2 (the dataset
     // is reused).
     let s = run(&b, Shard { index: 2, count: 2 }, None);
@@ -131,6 +137,12 @@ fn shards_merge_into_the_unsharded_table_and_a_stopped_cell_resumes() {
     let m = CellMetrics::read(&stopped_dir.join("metrics.json")).unwrap();
     assert!(m.wall_seconds > first + 1000.0 && m.wall_seconds >= m.train_seconds, "{first} then {m:?}");
     assert!(m.wall_seconds < first + 1000.0 + 600.0, "{m:?}");
+    // Each session's steps and binary: the first's record, then this one's.
+    let both = [
+        Session { from: 0, to: 5, git_commit: "0123abc".into() },
+        Session { from: 5, to: ITERATIONS, git_commit: commit.into() },
+    ];
+    assert_eq!((m.git_commit.as_str(), &m.sessions[..]), (commit, &both[..]));
     let s = run(&b, Shard { index: 1, count: 2 }, None);
     assert_eq!((s.cells, s.trained, s.simulated), (2, 2, 0), "{s:?}");
 
@@ -151,6 +163,7 @@ fn shards_merge_into_the_unsharded_table_and_a_stopped_cell_resumes() {
         assert!(m.lpips.is_none() && m.views.iter().all(|v| v.lpips.is_none()));
         assert!(m.psnr.is_finite() && m.ssim > -1.0 && m.ssim <= 1.0 && m.wall_seconds > 0.0, "{m:?}");
         assert_eq!(m.threads, 2);
+        assert_eq!(m.sessions, [Session { from: 0, to: ITERATIONS, git_commit: m.git_commit.clone() }]);
     }
     // One dataset folder, complete, no shard's partial copy left behind.
     let datasets: Vec<String> = std::fs::read_dir(b.results.join("datasets"))

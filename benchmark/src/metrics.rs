@@ -56,17 +56,11 @@ impl Machine {
     }
 }
 
-/// The git commit of the evblur source tree this binary was built from (`git rev-parse HEAD`
-/// in it, at run time, with `-dirty` when tracked files differ), or `unknown`.
-pub fn git_commit() -> String {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let git = |args: &[&str]| std::process::Command::new("git").arg("-C").arg(src).args(args).output().ok();
-    let Some(head) = git(&["rev-parse", "HEAD"]).filter(|o| o.status.success()) else { return "unknown".into() };
-    let mut commit = String::from_utf8_lossy(&head.stdout).trim().to_string();
-    if git(&["diff", "--quiet", "HEAD"]).is_some_and(|o| o.status.code() == Some(1)) {
-        commit.push_str("-dirty");
-    }
-    commit
+/// The git commit of the evblur sources this binary was built from, with `-dirty` when they
+/// differed from it, or `unknown` (baked in by `build.rs` at build time: a binary that runs
+/// after the checkout moved on still names the code it was built from).
+pub fn git_commit() -> &'static str {
+    env!("EVBLUR_GIT_COMMIT")
 }
 
 /// A finished cell.
@@ -121,6 +115,23 @@ pub struct CellMetrics {
     /// Where that session ran.
     pub machine: Machine,
     /// Source commit of that session's binary ([`git_commit`]).
+    pub git_commit: String,
+    /// The sessions that trained the cell, in step order, each with its binary's commit (one
+    /// for a cell trained in one go; absent in cells scored before 2026-12-08). Steps that no
+    /// session recorded (one killed outright, or run by an older evbench) show as `unknown`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sessions: Vec<Session>,
+}
+
+/// The steps one session of a cell trained and the binary that trained them.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Session {
+    /// First step it trained.
+    pub from: u64,
+    /// The step it stopped at (exclusive).
+    pub to: u64,
+    /// [`git_commit`] of its binary, or `unknown`.
     pub git_commit: String,
 }
 
@@ -195,6 +206,21 @@ pub(crate) mod tests {
             threads: 2,
             machine: Machine { hostname: "test".into(), cpus: 2 },
             git_commit: "unknown".into(),
+            sessions: vec![],
+        }
+    }
+
+    #[test]
+    fn the_commit_is_the_one_the_binary_was_built_from() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap();
+        let head = std::process::Command::new("git").arg("-C").arg(root).args(["rev-parse", "HEAD"]).output();
+        match head {
+            Ok(o) if o.status.success() => {
+                // Cargo built this test after the last commit (build.rs reruns when the refs move).
+                let head = String::from_utf8(o.stdout).unwrap().trim().to_string();
+                assert!([head.clone(), format!("{head}-dirty")].contains(&git_commit().to_string()), "{head}");
+            }
+            _ => assert_eq!(git_commit(), "unknown"),
         }
     }
 

@@ -21,7 +21,7 @@ use super::progress::Progress;
 use crate::error::BenchError;
 use crate::lpips::Lpips;
 use crate::matrix::{Cell, MatrixPlan};
-use crate::metrics::{CellMetrics, Machine, FORMAT};
+use crate::metrics::{CellMetrics, Machine, Session, FORMAT};
 
 /// The last dataset loaded, kept for the next cell on the same scene.
 #[derive(Default)]
@@ -60,6 +60,41 @@ fn write_wall(dir: &Path, seconds: f64) -> Result<(), BenchError> {
         .map_err(|e| BenchError::results(&path, format!("{e:#}")))
 }
 
+/// The file in a cell's folder that lists the sessions that trained it so far, each with its
+/// binary's commit (JSON, [`Session`]s), for the session that finishes it.
+pub const SESSIONS_FILE: &str = "sessions.json";
+
+/// The sessions that trained steps `0..from` (the checkpoint's): those `dir`'s
+/// [`SESSIONS_FILE`] records, in order and inside `0..from`, with any steps no session recorded
+/// (a session killed outright, an older evbench, a missing or damaged file) as `unknown`.
+fn sessions_before(dir: &Path, from: u64) -> Vec<Session> {
+    let text = std::fs::read_to_string(dir.join(SESSIONS_FILE)).unwrap_or_default();
+    let recorded: Vec<Session> = serde_json::from_str(&text).unwrap_or_default();
+    let mut out: Vec<Session> = Vec::new();
+    let mut at = 0;
+    for s in recorded {
+        if s.from < at || s.to <= s.from || s.to > from {
+            continue;
+        }
+        if s.from > at {
+            out.push(Session { from: at, to: s.from, git_commit: "unknown".into() });
+        }
+        at = s.to;
+        out.push(s);
+    }
+    if at < from {
+        out.push(Session { from: at, to: from, git_commit: "unknown".into() });
+    }
+    out
+}
+
+/// Writes `sessions` to `dir`'s [`SESSIONS_FILE`] atomically.
+fn write_sessions(dir: &Path, sessions: &[Session]) -> Result<(), BenchError> {
+    let path = dir.join(SESSIONS_FILE);
+    let text = serde_json::to_string_pretty(sessions).expect("plain data serialises") + "\n";
+    simulator::image_io::write_atomic(&path, text.as_bytes()).map_err(|e| BenchError::results(&path, format!("{e:#}")))
+}
+
 /// How a cell ended.
 #[derive(Debug)]
 pub enum Outcome {
@@ -94,7 +129,7 @@ pub struct CellRun<'a> {
     pub stop_after_steps: Option<u64>,
     /// The bars.
     pub progress: &'a Progress,
-    /// The short source commit, recorded in the metrics.
+    /// This binary's source commit ([`crate::metrics::git_commit`]), recorded in the metrics.
     pub git_commit: &'a str,
 }
 
@@ -147,6 +182,9 @@ impl CellRun<'_> {
 
         let mut trainer = Trainer::new_in(data, record.config.clone(), checkpoint, Some(&dir))?;
         let from = trainer.step;
+        // Which binaries trained the checkpoint's steps, then this one's.
+        let mut sessions = sessions_before(&dir, from);
+        let this = |to: u64| Session { from, to, git_commit: self.git_commit.into() };
         if from < iterations {
             self.progress.cell_start(&label, from, iterations);
             let max_steps = self.stop_after_steps.map(|n| from + n);
@@ -156,6 +194,8 @@ impl CellRun<'_> {
             self.progress.move_cell_to(trainer.step);
             let stopped = self.stop.is_some_and(|s| s.load(Ordering::SeqCst)) || max_steps.is_some();
             if trainer.step < iterations && stopped {
+                sessions.extend((trainer.step > from).then(|| this(trainer.step)));
+                write_sessions(&dir, &sessions)?;
                 write_wall(&dir, earlier + t0.elapsed().as_secs_f64())?;
                 return Ok(Outcome::Interrupted { step: trainer.step });
             }
@@ -166,6 +206,7 @@ impl CellRun<'_> {
         let views =
             score_views(data, &trainer.method, &trainer.params, &trainer.cfg, self.lpips, self.pool, &run.eval())?;
         let (psnr, ssim, lpips) = means(&views);
+        sessions.extend((trainer.step > from).then(|| this(trainer.step)));
         let metrics = CellMetrics {
             format: FORMAT,
             tool_version: env!("CARGO_PKG_VERSION").into(),
@@ -189,8 +230,49 @@ impl CellRun<'_> {
             threads: if self.threads == 0 { rayon::current_num_threads() } else { self.threads },
             machine: Machine::current(),
             git_commit: self.git_commit.into(),
+            sessions,
         };
         metrics.write(&dir)?;
         Ok(Outcome::Finished { metrics: Box::new(metrics), from })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn session(from: u64, to: u64, commit: &str) -> Session {
+        Session { from, to, git_commit: commit.into() }
+    }
+
+    #[test]
+    fn the_sessions_before_a_checkpoint_fill_unrecorded_steps_as_unknown() {
+        let dir = std::env::temp_dir().join(format!("evbench-sessions-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        // No file: the checkpoint's steps came from an unrecorded session.
+        assert_eq!(sessions_before(&dir, 0), []);
+        assert_eq!(sessions_before(&dir, 300), [session(0, 300, "unknown")]);
+        // Two recorded sessions with a gap (a session killed outright between them).
+        write_sessions(&dir, &[session(0, 100, "a"), session(150, 200, "b")]).unwrap();
+        assert_eq!(
+            sessions_before(&dir, 260),
+            [session(0, 100, "a"), session(100, 150, "unknown"), session(150, 200, "b"), session(200, 260, "unknown")]
+        );
+        assert_eq!(
+            sessions_before(&dir, 200),
+            [session(0, 100, "a"), session(100, 150, "unknown"), session(150, 200, "b")]
+        );
+        // A record beyond the checkpoint (an older checkpoint) is dropped; a new run sees none.
+        assert_eq!(sessions_before(&dir, 120), [session(0, 100, "a"), session(100, 120, "unknown")]);
+        assert_eq!(sessions_before(&dir, 0), []);
+        // A damaged file loses the record, not the run.
+        std::fs::write(dir.join(SESSIONS_FILE), "[{\"from\": 0").unwrap();
+        assert_eq!(sessions_before(&dir, 50), [session(0, 50, "unknown")]);
+        // Written atomically: no temporary file is left.
+        write_sessions(&dir, &[session(0, 5, "c")]).unwrap();
+        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, [SESSIONS_FILE]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -160,7 +160,7 @@ pub fn run(plan: &MatrixPlan, opts: &RunOptions) -> Result<RunSummary, BenchErro
         stop: opts.stop,
         stop_after_steps: opts.stop_after_steps,
         progress: &progress,
-        git_commit: &git_commit,
+        git_commit,
     };
     let mut datasets = DatasetCache::default();
     let mut scene_errors: Vec<Option<String>> = vec![None; plan.scenes.len()];

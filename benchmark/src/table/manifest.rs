@@ -1,7 +1,8 @@
 //! The manifest beside each table (`<form>.manifest.json`): the tool version and source commit
 //! that made the table, the machine, and per cell (by key) its method, preset, overrides,
-//! scale, scene, dataset identity, seed, steps, thread count, machine, commit and times (train,
-//! final scoring and the wall time of the session that finished it, seconds).
+//! scale, scene, dataset identity, seed, steps, thread count, machine, commit (and the commit
+//! of each session that trained it) and times (train, final scoring and the wall time over its
+//! sessions, seconds).
 
 use std::path::{Path, PathBuf};
 
@@ -9,7 +10,7 @@ use serde::Serialize;
 
 use super::{format, Table};
 use crate::error::BenchError;
-use crate::metrics::{git_commit, CellMetrics, Machine};
+use crate::metrics::{git_commit, CellMetrics, Machine, Session};
 
 /// One cell in the manifest.
 #[derive(Serialize)]
@@ -35,6 +36,8 @@ struct ManifestMetrics<'a> {
     threads: usize,
     machine: &'a Machine,
     git_commit: &'a str,
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    sessions: &'a [Session],
     tool_version: &'a str,
     train_seconds: f64,
     eval_seconds: f64,
@@ -56,6 +59,7 @@ impl<'a> From<&'a CellMetrics> for ManifestMetrics<'a> {
             threads: m.threads,
             machine: &m.machine,
             git_commit: &m.git_commit,
+            sessions: &m.sessions,
             tool_version: &m.tool_version,
             train_seconds: m.train_seconds,
             eval_seconds: m.eval_seconds,
@@ -69,7 +73,7 @@ impl<'a> From<&'a CellMetrics> for ManifestMetrics<'a> {
 struct Manifest<'a> {
     tool: &'static str,
     version: &'static str,
-    git_commit: String,
+    git_commit: &'static str,
     machine: Machine,
     form: &'static str,
     results: &'a Path,

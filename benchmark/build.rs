@@ -2,7 +2,8 @@
 //! workspace when it is built, with `-dirty` when the sources compiled into it (the three
 //! crates, the workspace manifest and lock file) differ from that commit, or `unknown` outside
 //! a git checkout (a source tarball) or without git. Cells and tables record it, so a binary
-//! run after the checkout moved on still names the code that trained.
+//! run after the checkout moved on still names the code that trained. A build without `.git`
+//! (the container of `deploy/k8s`) can name it: `EVBLUR_GIT_COMMIT=<commit> cargo build ...`.
 //!
 //! Cargo runs this again when the commit can have changed (HEAD, the refs) or those sources
 //! changed (the dirty mark); not on index-only changes (`git add`) or edits elsewhere (docs).
@@ -41,8 +42,13 @@ fn main() {
             }
         }
     }
-    let commit = match text(&["rev-parse", "HEAD"]) {
-        Some(head) if !head.is_empty() => {
+    // A commit named by the builder wins (no dirty mark: there may be no tree to compare).
+    println!("cargo:rerun-if-env-changed=EVBLUR_GIT_COMMIT");
+    let given = std::env::var("EVBLUR_GIT_COMMIT").ok().map(|c| c.trim().to_string()).filter(|c| !c.is_empty());
+    println!("cargo:rustc-env=EVBLUR_GIT_COMMIT_GIVEN={}", u8::from(given.is_some()));
+    let commit = match (given, text(&["rev-parse", "HEAD"])) {
+        (Some(given), _) => given,
+        (None, Some(head)) if !head.is_empty() => {
             let diff = [&["diff", "--quiet", "HEAD", "--"][..], &sources[..]].concat();
             let dirty = git(&diff).is_some_and(|o| o.status.code() == Some(1));
             if dirty {

@@ -1,12 +1,15 @@
 //! Bakes the source commit into the binary as `EVBLUR_GIT_COMMIT`: `git rev-parse HEAD` of the
 //! workspace when it is built, with `-dirty` when the sources compiled into it (the three
-//! crates, the workspace manifest and lock file) differ from that commit, or `unknown` outside
-//! a git checkout (a source tarball) or without git. Cells and tables record it, so a binary
+//! crates, the embedded font, the workspace manifest, lock file and `.cargo/config.toml`)
+//! differ from that commit, or `unknown` outside a git checkout (a source tarball) or without
+//! git. Cells and tables record it, so a binary
 //! run after the checkout moved on still names the code that trained. A build without `.git`
-//! (the container of `deploy/k8s`) can name it: `EVBLUR_GIT_COMMIT=<commit> cargo build ...`.
+//! (the container of `deploy/k8s`) can name it: `EVBLUR_GIT_COMMIT=<commit> cargo build ...`
+//! (taken as given, without a dirty mark).
 //!
-//! Cargo runs this again when the commit can have changed (HEAD, the refs) or those sources
-//! changed (the dirty mark); not on index-only changes (`git add`) or edits elsewhere (docs).
+//! Cargo runs this again when the commit can have changed (HEAD, the local branches) or
+//! those sources changed (the dirty mark); not on index-only changes (`git add`), fetches, tags
+//! or edits elsewhere (docs).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -21,10 +24,12 @@ fn main() {
         "trainer/src",
         "trainer/Cargo.toml",
         "benchmark/src",
+        "benchmark/assets",
         "benchmark/Cargo.toml",
         "benchmark/build.rs",
         "Cargo.toml",
         "Cargo.lock",
+        ".cargo/config.toml",
     ];
     for s in sources {
         rerun_if_exists(&root.join(s));
@@ -33,12 +38,19 @@ fn main() {
     let text = |args: &[&str]| {
         git(args).filter(|o| o.status.success()).map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
     };
-    // The commit moves with HEAD (a checkout) and with the refs (a commit, a fetch, a reset).
-    for dir_arg in ["--git-dir", "--git-common-dir"] {
-        if let Some(dir) = text(&["rev-parse", dir_arg]) {
-            let dir = root.join(dir);
-            for name in ["HEAD", "refs", "packed-refs"] {
-                rerun_if_exists(&dir.join(name));
+    // Only this workspace's own checkout counts (not a repository that happens to hold the
+    // folder, such as the one around cargo's `target/package/` copy).
+    let same = |a: &Path, b: &Path| a.canonicalize().ok().is_some_and(|a| b.canonicalize().ok() == Some(a));
+    let own = text(&["rev-parse", "--show-toplevel"]).is_some_and(|top| same(Path::new(&top), &root));
+    // The commit moves with HEAD (a checkout, a detached HEAD's commit) and with the local
+    // branches (a commit, a reset: a loose ref, created when a packed one moves, or packed).
+    if own {
+        for dir_arg in ["--git-dir", "--git-common-dir"] {
+            if let Some(dir) = text(&["rev-parse", dir_arg]) {
+                let dir = root.join(dir);
+                for name in ["HEAD", "packed-refs", "refs/heads"] {
+                    rerun_if_exists(&dir.join(name));
+                }
             }
         }
     }
@@ -46,7 +58,8 @@ fn main() {
     println!("cargo:rerun-if-env-changed=EVBLUR_GIT_COMMIT");
     let given = std::env::var("EVBLUR_GIT_COMMIT").ok().map(|c| c.trim().to_string()).filter(|c| !c.is_empty());
     println!("cargo:rustc-env=EVBLUR_GIT_COMMIT_GIVEN={}", u8::from(given.is_some()));
-    let commit = match (given, text(&["rev-parse", "HEAD"])) {
+    let head = if own { text(&["rev-parse", "HEAD"]) } else { None };
+    let commit = match (given, head) {
         (Some(given), _) => given,
         (None, Some(head)) if !head.is_empty() => {
             let diff = [&["diff", "--quiet", "HEAD", "--"][..], &sources[..]].concat();

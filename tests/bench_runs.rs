@@ -244,6 +244,10 @@ fn lpips_weights_score_finished_cells_again_without_training() {
         let l = m.lpips.unwrap();
         assert!(l.is_finite() && l > 0.0 && m.views.iter().all(|v| v.lpips.is_some()), "{m:?}");
         assert_eq!(m.steps, ITERATIONS);
+        // Scoring again keeps the record of the session that trained it.
+        let trained = CellMetrics::read(&a.cell_dir(cell).join("metrics.json")).unwrap();
+        assert_eq!(m.sessions, trained.sessions);
+        assert_eq!(m.sessions.len(), 1, "{:?}", m.sessions);
     }
     // PSNR and SSIM are unchanged; LPIPS is no longer n/a.
     let (ta, tc) = (csv(&a.results), csv(&c.results));

@@ -13,8 +13,8 @@ use trainer::presets::Scale;
 
 use crate::error::BenchError;
 
-/// Format version of `metrics.json`.
-pub const FORMAT: u32 = 1;
+/// Format version of `metrics.json` (2: `sessions` added; format 1 files still read).
+pub const FORMAT: u32 = 2;
 /// File name of a cell's metrics.
 pub const FILE: &str = "metrics.json";
 
@@ -160,13 +160,21 @@ impl CellMetrics {
     pub fn read(path: &Path) -> Result<CellMetrics, BenchError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| BenchError::results(path, format!("cannot read ({e}); check permissions")))?;
+        // A newer evbench's file may hold fields this one does not know: say so before parsing.
+        let format = serde_json::from_str::<serde_json::Value>(&text).ok().and_then(|v| v["format"].as_u64());
+        if let Some(f) = format.filter(|&f| f > u64::from(FORMAT)) {
+            return Err(BenchError::results(
+                path,
+                format!("metrics format {f}, written by a newer evbench (this one reads up to {FORMAT}); the cell is finished: read it with that evbench, or update this one"),
+            ));
+        }
         let m: CellMetrics = serde_json::from_str(&text).map_err(|e| {
             BenchError::results(
                 path,
                 format!("not an evbench metrics file ({e}); delete it to evaluate the cell again"),
             )
         })?;
-        if m.format != FORMAT {
+        if !(1..=FORMAT).contains(&m.format) {
             return Err(BenchError::results(
                 path,
                 format!("metrics format {}, this build reads {FORMAT}; delete it to evaluate the cell again", m.format),
@@ -231,7 +239,8 @@ pub(crate) mod tests {
     fn writes_atomically_and_reads_back() {
         let dir = std::env::temp_dir().join(format!("evbench-metrics-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let m = cell("nerf", "tiny", 0, (20.5, None, 0.5));
+        let sessions = vec![Session { from: 0, to: 10, git_commit: "abc".into() }];
+        let m = CellMetrics { sessions, ..cell("nerf", "tiny", 0, (20.5, None, 0.5)) };
         m.write(&dir).unwrap();
         assert_eq!(CellMetrics::read(&dir.join(FILE)).unwrap(), m);
         // Only metrics.json is left: the temporary file was renamed into place.
@@ -245,6 +254,15 @@ pub(crate) mod tests {
         let err = bad.write(&dir).unwrap_err().to_string();
         assert!(err.contains("metrics.json") && err.contains("not finite"), "{err}");
         assert_eq!(CellMetrics::read(&dir.join(FILE)).unwrap(), m);
+
+        // Format 1 (before `sessions`) still reads; a newer evbench's file is not called damaged.
+        let v1 = text.replace("\"format\": 2", "\"format\": 1");
+        std::fs::write(dir.join(FILE), &v1).unwrap();
+        assert_eq!(CellMetrics::read(&dir.join(FILE)).unwrap(), CellMetrics { format: 1, ..m.clone() });
+        let v3 = text.replace("\"format\": 2", "\"format\": 3").replace("\"key\"", "\"new_field\": 0, \"key\"");
+        std::fs::write(dir.join(FILE), v3).unwrap();
+        let err = CellMetrics::read(&dir.join(FILE)).unwrap_err().to_string();
+        assert!(err.contains("newer evbench") && !err.contains("delete"), "{err}");
 
         // A damaged file names itself and the fix.
         std::fs::write(dir.join(FILE), "{\"format\": 1").unwrap();

@@ -61,7 +61,7 @@ fn write_wall(dir: &Path, seconds: f64) -> Result<(), BenchError> {
 }
 
 /// The file in a cell's folder that lists the sessions that trained it so far, each with its
-/// binary's commit (JSON, [`Session`]s), for the session that finishes it.
+/// binary's commit (JSON, [`Session`]s), for the session that resumes or scores it again.
 pub const SESSIONS_FILE: &str = "sessions.json";
 
 /// The sessions that trained steps `0..from` (the checkpoint's): those `dir`'s
@@ -176,14 +176,21 @@ impl CellRun<'_> {
         // records nothing).
         let resumed_at = checkpoint.as_ref().map_or(0.0, |c| c.seconds);
         let earlier = if checkpoint.is_some() { read_wall(&dir).max(resumed_at) } else { 0.0 };
+        if checkpoint.is_none() {
+            // A fresh run: a record left by an earlier run of this folder is not its own.
+            write_wall(&dir, 0.0)?;
+        }
         let (run, mut record) = (&run_plan.paths, run_plan.record.clone());
         record.config.threads = self.threads;
         let iterations = record.config.iterations;
 
         let mut trainer = Trainer::new_in(data, record.config.clone(), checkpoint, Some(&dir))?;
         let from = trainer.step;
-        // Which binaries trained the checkpoint's steps, then this one's.
+        // Which binaries trained the checkpoint's steps, then this one's. Written back at once:
+        // a fresh run drops a stale record, and a session killed outright leaves the steps
+        // before it right.
         let mut sessions = sessions_before(&dir, from);
+        write_sessions(&dir, &sessions)?;
         let this = |to: u64| Session { from, to, git_commit: self.git_commit.into() };
         if from < iterations {
             self.progress.cell_start(&label, from, iterations);
@@ -207,6 +214,9 @@ impl CellRun<'_> {
             score_views(data, &trainer.method, &trainer.params, &trainer.cfg, self.lpips, self.pool, &run.eval())?;
         let (psnr, ssim, lpips) = means(&views);
         sessions.extend((trainer.step > from).then(|| this(trainer.step)));
+        // Kept for a later session that only scores the cell again (LPIPS weights given later,
+        // or metrics.json deleted).
+        write_sessions(&dir, &sessions)?;
         let metrics = CellMetrics {
             format: FORMAT,
             tool_version: env!("CARGO_PKG_VERSION").into(),

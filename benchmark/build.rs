@@ -2,10 +2,9 @@
 //! workspace when it is built, with `-dirty` when the sources compiled into it (the three
 //! crates, the embedded font, the workspace manifest, lock file and `.cargo/config.toml`)
 //! differ from that commit, or `unknown` outside a git checkout (a source tarball) or without
-//! git. Cells and tables record it, so a binary
-//! run after the checkout moved on still names the code that trained. A build without `.git`
-//! (the container of `deploy/k8s`) can name it: `EVBLUR_GIT_COMMIT=<commit> cargo build ...`
-//! (taken as given, without a dirty mark).
+//! git. Cells and tables record it, so a binary run after the checkout moved on still names
+//! the code that trained. A build without `.git` (the container of `deploy/k8s`) can name it:
+//! `EVBLUR_GIT_COMMIT=<commit> cargo build ...` (taken as given, without a dirty mark).
 //!
 //! Cargo runs this again when the commit can have changed (HEAD, the local branches) or
 //! those sources changed (the dirty mark); not on index-only changes (`git add`), fetches, tags

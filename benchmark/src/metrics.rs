@@ -177,7 +177,10 @@ impl CellMetrics {
         if !(1..=FORMAT).contains(&m.format) {
             return Err(BenchError::results(
                 path,
-                format!("metrics format {}, this build reads {FORMAT}; delete it to evaluate the cell again", m.format),
+                format!(
+                    "metrics format {}, this build reads 1 to {FORMAT}; delete it to evaluate the cell again",
+                    m.format
+                ),
             ));
         }
         Ok(m)

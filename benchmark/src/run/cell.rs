@@ -55,9 +55,13 @@ fn read_wall(dir: &Path) -> f64 {
 
 /// Writes `seconds` to `dir`'s [`WALL_FILE`] atomically.
 fn write_wall(dir: &Path, seconds: f64) -> Result<(), BenchError> {
-    let path = dir.join(WALL_FILE);
-    simulator::image_io::write_atomic(&path, format!("{seconds}\n").as_bytes())
-        .map_err(|e| BenchError::results(&path, format!("{e:#}")))
+    write_record(dir, WALL_FILE, &format!("{seconds}\n"))
+}
+
+/// Writes `text` to `dir/name` atomically (a record carried from one session to the next).
+fn write_record(dir: &Path, name: &str, text: &str) -> Result<(), BenchError> {
+    let path = dir.join(name);
+    simulator::image_io::write_atomic(&path, text.as_bytes()).map_err(|e| BenchError::results(&path, format!("{e:#}")))
 }
 
 /// The file in a cell's folder that lists the sessions that trained it so far, each with its
@@ -90,9 +94,7 @@ fn sessions_before(dir: &Path, from: u64) -> Vec<Session> {
 
 /// Writes `sessions` to `dir`'s [`SESSIONS_FILE`] atomically.
 fn write_sessions(dir: &Path, sessions: &[Session]) -> Result<(), BenchError> {
-    let path = dir.join(SESSIONS_FILE);
-    let text = serde_json::to_string_pretty(sessions).expect("plain data serialises") + "\n";
-    simulator::image_io::write_atomic(&path, text.as_bytes()).map_err(|e| BenchError::results(&path, format!("{e:#}")))
+    write_record(dir, SESSIONS_FILE, &(serde_json::to_string_pretty(sessions).expect("plain data serialises") + "\n"))
 }
 
 /// How a cell ended.
